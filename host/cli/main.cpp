@@ -1,0 +1,47 @@
+// btsm — host tool of the Bluetooth Temperature Sensor Module.
+#include "cli_support.hpp"
+#include "commands.hpp"
+
+#include <fmt/core.h>
+
+#include <exception>
+#include <iostream>
+
+int main(int argc, char** argv) {
+  CLI::App app{"btsm — host tool of the Bluetooth Temperature Sensor Module (spindle thermal monitoring)"};
+  app.set_version_flag("--version", std::string("btsm ") + BTSM_VERSION);
+  app.require_subcommand(1);
+  app.fallthrough();
+#ifdef BTSM_HAVE_CMD_RTD
+  btsm::cli::register_rtd_commands(app);
+#endif
+#ifdef BTSM_HAVE_CMD_LINK
+  btsm::cli::register_link_commands(app);
+#endif
+#ifdef BTSM_HAVE_CMD_SYSID
+  btsm::cli::register_sysid_commands(app);
+#endif
+#ifdef BTSM_HAVE_CMD_RESIDUAL
+  btsm::cli::register_residual_commands(app);
+#endif
+#ifdef BTSM_HAVE_CMD_SIM
+  btsm::cli::register_sim_commands(app);
+#endif
+#ifdef BTSM_HAVE_CMD_DEMO
+  btsm::cli::register_demo_commands(app);
+#endif
+  try {
+    app.parse(argc, argv);
+  } catch (const CLI::ParseError& e) {
+    return app.exit(e);
+  } catch (const btsm::cli::CommandError& e) {
+    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
+    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": " << e.what() << "\n";
+    return e.code;
+  } catch (const std::exception& e) {
+    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
+    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": error: " << e.what() << "\n";
+    return btsm::cli::kExitFailure;
+  }
+  return 0;
+}
