@@ -1,0 +1,51 @@
+#pragma once
+// Injectable faults and "hidden effects" of the simulated spindle module.
+//
+// Fault spec (one per --fault option):   KIND[:ARG]@START[-END]   times with units (s, m, h)
+//   open:ch2@3600        probe on channel 2 open (broken sense lead / connector) from t = 3600 s:
+//                        that channel's input floats, the series chain still carries current
+//   openchain:ch2@3600   element or force lead of channel 2 broken: the series chain carries no
+//                        current any more, so EVERY channel loses its signal (a real hazard of
+//                        the 5-probe series connection)
+//   short:ch1@100-200    probe on channel 1 shorted from 100 s to 200 s
+//   noadc@0              AD7794 missing (no answer on SPI, MISO stays high)
+//   noref@50             reference lost (REFIN open: NOXREF, codes clamp)
+//   bearing:25W@7200     bearing fault: 25 W extra heat at the rear bearing (node 1) from 2 h
+// Hidden effects (physics the paper's model lacks; never announced to the host):
+//   bearing-tc:K         rear-bearing heat grows with its own rise: Q1 -> Q1 (1 + K theta1),
+//                        K in 1/K (e.g. 0.01 = +1 % per kelvin)
+//   run-in:W/TAU         after every speed increase, extra heat at both bearings (nodes 1 and 3)
+//                        starting at W watts per 1000 rpm of increase, decaying with time
+//                        constant TAU (units allowed, e.g. run-in:6W/20m)
+// Errors throw std::invalid_argument naming the spec and the part that is wrong.
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace btsm::sim {
+
+enum class FaultKind { OpenProbe, OpenChain, ShortedProbe, MissingAdc, LostReference, BearingHeat };
+
+struct FaultSpec {
+  FaultKind kind = FaultKind::OpenProbe;
+  int channel = 0;             // 1..5 for probe faults, 0 otherwise
+  double start_s = 0.0;        // s, fault active from this simulated time
+  double end_s = std::numeric_limits<double>::infinity();  // s, active until (exclusive)
+  double heat_w = 0.0;         // W, BearingHeat only
+  bool active_at(double t_s) const { return t_s >= start_s && t_s < end_s; }
+};
+
+FaultSpec parse_fault(const std::string& spec);
+std::string to_string(const FaultSpec& f);
+
+struct HiddenEffects {
+  double bearing_temp_coeff_per_k = 0.0;  // 1/K, Q1 scaled by (1 + k theta1); 0 = off
+  double runin_w_per_krpm = 0.0;          // W per 1000 rpm of speed increase; 0 = off
+  double runin_tau_s = 1800.0;            // s, decay time constant of the run-in heat
+  bool any() const { return bearing_temp_coeff_per_k != 0.0 || runin_w_per_krpm != 0.0; }
+};
+
+// Adds one "--effect" spec to `fx` (several effects combine).
+void parse_effect(const std::string& spec, HiddenEffects& fx);
+
+}  // namespace btsm::sim

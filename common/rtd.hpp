@@ -1,0 +1,187 @@
+// Platinum RTD: Callendar–Van Dusen resistance <-> temperature over the full IEC 60751 range.
+//
+//   R(t) = R0 (1 + A t + B t^2 + C (t - 100) t^3)      C used only for t < 0 degC
+//   IEC 60751 / ITS-90: A = 3.9083e-3 /degC, B = -5.775e-7 /degC^2, C = -4.183e-12 /degC^4
+//
+// t(R) is the exact inverse of R(t), not an approximation:
+//   R >= R0: closed-form root of B t^2 + A t - (r - 1) = 0 (r = R/R0), written as
+//            t = 2 (r - 1) / (A + sqrt(A^2 + 4 B (r - 1)))  -- no cancellation between A and the root
+//   R <  R0: Newton on the full quartic, started from that quadratic root (which is within 2.5 degC
+//            at -200 degC), stopped when the step is below the working precision; <= 8 iterations.
+// The polynomial is evaluated on (R - R0)/R0 rather than R/R0 - 1: R - R0 is exact in binary
+// floating point for R within a factor 2 of R0 (Sterbenz), which matters in float on the MCU.
+//
+// Both directions are templates over Real: float on the MCU (avr-g++: double is 32-bit there
+// anyway), double on the host. Inputs outside -200...850 degC (or the resistances they map to),
+// NaN and bad coefficient sets return an error status and a NaN value, never a plausible number.
+// Measured float-vs-double error: see tests/unit/common_numeric/rtd_test.cpp (printed there).
+//
+// C++14, no standard library.
+#ifndef BTSM_COMMON_RTD_HPP
+#define BTSM_COMMON_RTD_HPP
+
+#include <math.h>
+#include <stdint.h>
+
+namespace btsm {
+
+enum class RtdStatus : uint8_t {
+  kOk = 0,
+  kBelowRange = 1,       // t < -200 degC or R < R(-200 degC)
+  kAboveRange = 2,       // t > 850 degC or R > R(850 degC)
+  kNotANumber = 3,       // NaN input
+  kBadCoefficients = 4,  // R0 <= 0, A <= 0, non-finite, or a set whose R(t) is not increasing
+  kNoConvergence = 5,    // Newton did not converge (cannot happen with IEC coefficients)
+};
+
+inline const char* rtd_status_name(RtdStatus s) {
+  switch (s) {
+    case RtdStatus::kOk: return "ok";
+    case RtdStatus::kBelowRange: return "below the IEC 60751 range (-200 degC)";
+    case RtdStatus::kAboveRange: return "above the IEC 60751 range (850 degC)";
+    case RtdStatus::kNotANumber: return "not a number";
+    case RtdStatus::kBadCoefficients: return "invalid Callendar-Van Dusen coefficients";
+    case RtdStatus::kNoConvergence: return "inverse did not converge";
+  }
+  return "unknown RTD status";
+}
+
+template <class Real>
+struct RtdCoefficients {
+  Real r0_ohm;   // resistance at 0 degC (100 Pt100, 1000 Pt1000)
+  Real a;        // 1/degC
+  Real b;        // 1/degC^2
+  Real c;        // 1/degC^4, below 0 degC only
+};
+
+// IEC 60751 coefficients for any R0 (default Pt1000, the BTSM probe).
+template <class Real>
+inline RtdCoefficients<Real> iec60751(Real r0_ohm = Real(1000)) {
+  RtdCoefficients<Real> k;
+  k.r0_ohm = r0_ohm;
+  k.a = Real(3.9083e-3);
+  k.b = Real(-5.775e-7);
+  k.c = Real(-4.183e-12);
+  return k;
+}
+
+const int16_t kRtdMinC = -200;
+const int16_t kRtdMaxC = 850;
+// The inverse accepts resistances up to this far (degC) beyond the range ends, because a reading
+// of an end point carries rounding/noise (the IEC table itself lists R(-200) = 18.52 ohm, which is
+// -200.0002 degC exactly). Results there lie within the margin of the end point; anything further
+// out is an error.
+const float kRtdInverseMarginC = 0.02f;
+
+template <class Real>
+struct RtdResult {
+  RtdStatus status;
+  Real value;  // degC or ohm; NaN unless status == kOk
+  bool ok() const { return status == RtdStatus::kOk; }
+};
+
+namespace detail_rtd {
+inline float rsqrt(float v) { return sqrtf(v); }
+inline double rsqrt(double v) { return sqrt(v); }
+inline float rabs(float v) { return fabsf(v); }
+inline double rabs(double v) { return fabs(v); }
+inline float rnan(float) { return NAN; }
+inline double rnan(double) { return static_cast<double>(NAN); }
+template <class Real>
+inline bool finite(Real v) { return v == v && v - v == Real(0); }
+// Keeps the value argument out of template deduction: Real comes from the coefficients, and a
+// literal like 20.0 or NAN converts to it.
+template <class T>
+struct NonDeduced {
+  typedef T type;
+};
+
+template <class Real>
+inline RtdResult<Real> fail(RtdStatus s) {
+  RtdResult<Real> r;
+  r.status = s;
+  r.value = rnan(Real(0));
+  return r;
+}
+template <class Real>
+inline RtdResult<Real> good(Real v) {
+  RtdResult<Real> r;
+  r.status = RtdStatus::kOk;
+  r.value = v;
+  return r;
+}
+
+// (R - R0)/R0 as a function of t: A t + B t^2 [+ C (t - 100) t^3 for t < 0].
+template <class Real>
+inline Real relative_rise(const RtdCoefficients<Real>& k, Real t) {
+  Real p = t * (k.a + k.b * t);
+  if (t < Real(0)) p += k.c * (t - Real(100)) * t * t * t;
+  return p;
+}
+
+template <class Real>
+inline Real relative_rise_slope(const RtdCoefficients<Real>& k, Real t) {
+  Real s = k.a + Real(2) * k.b * t;
+  if (t < Real(0)) s += k.c * t * t * (Real(4) * t - Real(300));
+  return s;
+}
+
+// Checks that matter for a well-defined inverse: positive R0 and A, finite values, and R(t)
+// strictly increasing over the whole range (slope > 0 at both ends is sufficient for the IEC form
+// because the slope is monotone on each side of 0 for any set with B <= 0 and C <= 0; for other
+// sets the slope is also checked at 0).
+template <class Real>
+inline bool coefficients_ok(const RtdCoefficients<Real>& k) {
+  if (!finite(k.r0_ohm) || !finite(k.a) || !finite(k.b) || !finite(k.c)) return false;
+  if (!(k.r0_ohm > Real(0)) || !(k.a > Real(0))) return false;
+  return relative_rise_slope(k, Real(kRtdMinC)) > Real(0) && relative_rise_slope(k, Real(0)) > Real(0) &&
+         relative_rise_slope(k, Real(kRtdMaxC)) > Real(0);
+}
+}  // namespace detail_rtd
+
+// R(t) in ohm for t in [-200, 850] degC.
+template <class Real>
+inline RtdResult<Real> rtd_resistance(const RtdCoefficients<Real>& k,
+                                      typename detail_rtd::NonDeduced<Real>::type t_c) {
+  using namespace detail_rtd;
+  if (!coefficients_ok(k)) return fail<Real>(RtdStatus::kBadCoefficients);
+  if (t_c != t_c) return fail<Real>(RtdStatus::kNotANumber);
+  if (t_c < Real(kRtdMinC)) return fail<Real>(RtdStatus::kBelowRange);
+  if (t_c > Real(kRtdMaxC)) return fail<Real>(RtdStatus::kAboveRange);
+  return good<Real>(k.r0_ohm + k.r0_ohm * relative_rise(k, t_c));
+}
+
+// t(R) in degC for R in [R(-200 - margin), R(850 + margin)] (see kRtdInverseMarginC).
+template <class Real>
+inline RtdResult<Real> rtd_temperature(const RtdCoefficients<Real>& k,
+                                       typename detail_rtd::NonDeduced<Real>::type r_ohm) {
+  using namespace detail_rtd;
+  if (!coefficients_ok(k)) return fail<Real>(RtdStatus::kBadCoefficients);
+  if (r_ohm != r_ohm) return fail<Real>(RtdStatus::kNotANumber);
+  const Real x = (r_ohm - k.r0_ohm) / k.r0_ohm;  // relative rise, exact subtraction near R0
+  if (x < relative_rise(k, Real(kRtdMinC) - Real(kRtdInverseMarginC)))
+    return fail<Real>(RtdStatus::kBelowRange);
+  if (x > relative_rise(k, Real(kRtdMaxC) + Real(kRtdInverseMarginC)))
+    return fail<Real>(RtdStatus::kAboveRange);
+  const Real disc = k.a * k.a + Real(4) * k.b * x;
+  if (!(disc >= Real(0))) return fail<Real>(RtdStatus::kBadCoefficients);
+  Real t = Real(2) * x / (k.a + rsqrt(disc));
+  if (x >= Real(0) || k.c == Real(0)) return good<Real>(t);
+  // Below 0 degC: Newton on relative_rise(t) - x. The start is already close (quadratic root), and
+  // relative_rise is smooth and monotone there, so it converges quadratically.
+  // Stop when the step is a few ulps of t: the next one would be below rounding noise (and in
+  // float could oscillate by one ulp forever).
+  const Real eps = sizeof(Real) >= 8 ? Real(2.220446049250313e-16) : Real(1.1920929e-7);
+  for (uint8_t i = 0; i < 8; ++i) {
+    const Real step = (relative_rise(k, t) - x) / relative_rise_slope(k, t);
+    t -= step;
+    if (rabs(step) <= Real(16) * eps * (rabs(t) + Real(1))) {
+      return good<Real>(t);
+    }
+  }
+  return fail<Real>(RtdStatus::kNoConvergence);
+}
+
+}  // namespace btsm
+
+#endif  // BTSM_COMMON_RTD_HPP

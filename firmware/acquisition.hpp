@@ -1,0 +1,340 @@
+// Non-blocking AD7794 acquisition: chip bring-up, per-channel calibration, round-robin sweeps of
+// the five RTD channels with an open-wire (burnout) check, and detection of a silently reset chip.
+//
+// poll() never waits: it performs at most one short SPI transaction sequence and returns how many
+// milliseconds it can sleep before it needs to run again (DOUT/RDY or a timer wakes it earlier).
+//
+// Per sweep and enabled channel:
+//   1. idle mode, channel configuration, this channel's calibration pair (restored from RAM:
+//      AIN4..AIN6 share one pair on the chip), single conversion at the configured FS, wait RDY
+//   2. same channel with the burnout currents on, single conversion at FS 1 (4 ms): an open input
+//      is driven to full scale (ERR) -- a healthy one moves by 100 nA x R (ignored)
+// Before and after each sweep the mode/configuration/IO registers are read back; a mismatch means
+// the chip reset itself (supply glitch, ESD): it is counted and the chip re-initialised.
+#ifndef BTSM_FIRMWARE_ACQUISITION_HPP
+#define BTSM_FIRMWARE_ACQUISITION_HPP
+
+#include <stdint.h>
+
+#include "common/wire_messages.hpp"
+#include "firmware/ad7794.hpp"
+
+namespace btsm {
+
+struct AcquisitionSetup {
+  uint8_t fs = 10;                 // AD7794 FS code of measurement conversions (10 = 16.7 Hz)
+  uint8_t gain_code = 2;           // PGA gain code (2 = x4: 0..1.7 kOhm with R_ref 6.8 kOhm)
+  uint8_t enabled_mask = 0x1F;     // bit j = channel j (AIN j+1) is measured
+  float r_ref_ohm = 6800.0f;       // ohm, reference resistor on REFIN1
+  uint16_t recalibrate_sweeps = 720;  // sweeps between internal recalibrations (0 = never)
+};
+
+// Fault bits use the wire encoding (common/wire_messages.hpp kFault*).
+struct ChannelReading {
+  uint8_t faults;   // 0 = good reading
+  uint32_t code;    // raw 24-bit conversion result
+  float r_ohm;      // ratiometric resistance, valid when faults == 0
+};
+
+struct AcquisitionCounters {
+  uint16_t adc_timeouts;   // RDY did not come in time
+  uint16_t silent_resets;  // register read-back mismatch (chip reset behind our back)
+  uint16_t inits;          // chip (re)initialisations including the first
+  uint16_t missing;        // identification failures (no chip answering)
+};
+
+template <class Spi>
+class Acquisition {
+ public:
+  static constexpr uint8_t kChannels = wire::kChannels;
+  static constexpr uint8_t kBurnoutFs = 1;               // 470 Hz, 4 ms settling
+  static constexpr uint32_t kBurnoutOpenCode = 0xFFF000;  // at/above: driven to full scale
+  static constexpr float kShortBelowOhm = 500.0f;         // PT1000 at -125 degC is 509 ohm
+  static constexpr uint16_t kRetryMs = 1000;              // chip missing: identify again after
+
+  explicit Acquisition(Spi& spi) : adc_(spi) {
+    counters_ = AcquisitionCounters();
+    for (uint8_t i = 0; i < kChannels; ++i) {
+      readings_[i].faults = wire::kFaultAdc;
+      readings_[i].code = 0;
+      readings_[i].r_ohm = 0.0f;
+      cal_[i].offset = ad7794::kOffsetPowerOn;
+      cal_[i].full_scale = 0;
+    }
+  }
+
+  // New settings take effect with a full re-initialisation (reset + calibration).
+  void configure(const AcquisitionSetup& s) {
+    setup_ = s;
+    state_ = kStart;
+  }
+  const AcquisitionSetup& setup() const { return setup_; }
+
+  // Asks for one sweep; sweep_ready() turns true when its readings are available.
+  void request_sweep() { sweep_requested_ = true; }
+  bool sweep_ready() const { return sweep_ready_; }
+  void take_sweep() { sweep_ready_ = false; }
+  const ChannelReading& reading(uint8_t ch) const { return readings_[ch]; }
+  bool calibrated() const { return calibrated_; }
+  AdcChip chip() const { return chip_; }
+  const AcquisitionCounters& counters() const { return counters_; }
+  // Low bits of recent conversion results: noise, used as nonce entropy.
+  uint32_t entropy() const { return entropy_; }
+  const AdcCalibration& calibration(uint8_t ch) const { return cal_[ch]; }
+
+  // Config register of a channel (unipolar, buffered, REFIN1 with reference detection).
+  uint16_t channel_config(uint8_t ch, bool burnout) const {
+    return static_cast<uint16_t>(ad7794::kConfUnipolar | (uint16_t(setup_.gain_code & 7) << ad7794::kConfGainShift) |
+                                 (uint16_t(ad7794::kRefIn1) << ad7794::kConfRefselShift) |
+                                 ad7794::kConfRefDet | ad7794::kConfBuf | (burnout ? ad7794::kConfBurnout : 0) |
+                                 (ch & ad7794::kConfChannelMask));
+  }
+  // IO register: IEXC1 210 uA on IOUT1 (drives the chain), IEXC2 routed to IOUT2 (unused pin,
+  // but both sources run: the routing with both on IOUT1 would double the current).
+  static constexpr uint8_t kIoWord = ad7794::io_word(ad7794::kIexc1ToIout1, ad7794::kIexc210uA);
+
+  // Advances the state machine. Returns the longest sleep (ms) before it must run again.
+  uint32_t poll(uint32_t now_ms) {
+    switch (state_) {
+      case kStart:
+        calibrated_ = false;
+        ++counters_.inits;
+        adc_.reset();
+        mark_ = now_ms;
+        state_ = kResetWait;
+        return 2;
+      case kResetWait:
+        if (now_ms - mark_ < 2) return 1;  // >= 500 us after the reset (1 ms tick granularity)
+        chip_ = adc_.identify();
+        if (chip_ == AdcChip::kNone) {
+          ++counters_.missing;
+          fail_sweep(wire::kFaultAdc);
+          mark_ = now_ms;
+          state_ = kMissing;
+          return kRetryMs;
+        }
+        adc_.write(ad7794::kRegIo, kIoWord, 1);
+        channel_ = first_enabled(0);
+        if (channel_ >= kChannels) {
+          calibrated_ = true;
+          state_ = kIdle;
+          return 0;
+        }
+        state_ = kCalStart;
+        return 0;
+      case kMissing:
+        if (sweep_requested_) fail_sweep(wire::kFaultAdc);
+        if (now_ms - mark_ < kRetryMs) return kRetryMs - (now_ms - mark_);
+        state_ = kStart;
+        return 0;
+      case kCalStart:
+        adc_.prepare_channel(channel_config(channel_, false), setup_.fs, 0);
+        begin_wait(ad7794::kModeInternalZeroCal, setup_.fs, now_ms, ad7794::settle_ms(setup_.fs));
+        state_ = kCalZeroWait;
+        return wait_budget(now_ms);
+      case kCalZeroWait:
+        if (!adc_.ready()) return check_timeout(now_ms);
+        adc_.finish();
+        // Internal full-scale calibration takes 4 conversion cycles at gains above 1.
+        begin_wait(ad7794::kModeInternalFullCal, setup_.fs, now_ms,
+                   static_cast<uint16_t>(ad7794::settle_ms(setup_.fs) * (setup_.gain_code > 0 ? 2 : 1)));
+        state_ = kCalFullWait;
+        return wait_budget(now_ms);
+      case kCalFullWait:
+        if (!adc_.ready()) return check_timeout(now_ms);
+        adc_.finish();
+        cal_[channel_] = adc_.read_calibration();
+        channel_ = first_enabled(channel_ + 1);
+        if (channel_ < kChannels) {
+          state_ = kCalStart;
+          return 0;
+        }
+        calibrated_ = true;
+        sweeps_since_cal_ = 0;
+        last_config_ = channel_config(cal_channel_last(), false);
+        state_ = kIdle;
+        return 0;
+      case kIdle:
+        if (!sweep_requested_) return 0xFFFFFFFFUL;
+        sweep_requested_ = false;
+        if (!registers_intact()) {
+          ++counters_.silent_resets;
+          sweep_requested_ = true;  // serve it after the re-initialisation
+          state_ = kStart;
+          return 0;
+        }
+        channel_ = first_enabled(0);
+        for (uint8_t i = 0; i < kChannels; ++i) {
+          readings_[i].faults = 0;
+          readings_[i].code = 0;
+          readings_[i].r_ohm = 0.0f;
+        }
+        if (channel_ >= kChannels) {
+          sweep_ready_ = true;
+          return 0;
+        }
+        state_ = kConvStart;
+        return 0;
+      case kConvStart:
+        adc_.prepare_channel(channel_config(channel_, false), setup_.fs, &cal_[channel_]);
+        last_config_ = channel_config(channel_, false);
+        begin_wait(ad7794::kModeSingle, setup_.fs, now_ms, ad7794::settle_ms(setup_.fs));
+        state_ = kConvWait;
+        return wait_budget(now_ms);
+      case kConvWait: {
+        if (!adc_.ready()) return check_timeout(now_ms);
+        uint8_t status = 0;
+        uint32_t code = 0;
+        adc_.finish_conversion(status, code, data_width());
+        entropy_ = (entropy_ << 3) ^ (entropy_ >> 29) ^ (code & 0xFF);
+        evaluate(channel_, status, code);
+        adc_.prepare_channel(channel_config(channel_, true), kBurnoutFs, &cal_[channel_]);
+        begin_wait(ad7794::kModeSingle, kBurnoutFs, now_ms, ad7794::settle_ms(kBurnoutFs));
+        state_ = kBurnWait;
+        return wait_budget(now_ms);
+      }
+      case kBurnWait: {
+        if (!adc_.ready()) return check_timeout(now_ms);
+        uint8_t status = 0;
+        uint32_t code = 0;
+        adc_.finish_conversion(status, code, data_width());
+        ChannelReading& r = readings_[channel_];
+        const bool reference_missing = (status & ad7794::kStatusNoXref) != 0;
+        if (!reference_missing && ((status & ad7794::kStatusErr) || code >= kBurnoutOpenCode)) {
+          r.faults = static_cast<uint8_t>((r.faults & ~wire::kFaultShort) | wire::kFaultOpen);
+        }
+        // Burnout currents off again (and the register image the read-back expects).
+        adc_.write(ad7794::kRegConfig, last_config_, 2);
+        channel_ = first_enabled(channel_ + 1);
+        if (channel_ < kChannels) {
+          state_ = kConvStart;
+          return 0;
+        }
+        end_sweep();
+        return 0;
+      }
+    }
+    return 0;
+  }
+
+ private:
+  enum State : uint8_t {
+    kStart, kResetWait, kMissing, kCalStart, kCalZeroWait, kCalFullWait, kIdle, kConvStart,
+    kConvWait, kBurnWait,
+  };
+
+  uint8_t data_width() const { return chip_ == AdcChip::kAd7795 ? 2 : 3; }
+
+  uint8_t first_enabled(uint8_t from) const {
+    uint8_t ch = from;
+    while (ch < kChannels && ((setup_.enabled_mask >> ch) & 1U) == 0) ++ch;
+    return ch;
+  }
+  uint8_t cal_channel_last() const {
+    uint8_t last = 0;
+    for (uint8_t ch = 0; ch < kChannels; ++ch)
+      if ((setup_.enabled_mask >> ch) & 1U) last = ch;
+    return last;
+  }
+
+  void begin_wait(uint8_t mode, uint8_t fs, uint32_t now_ms, uint16_t expected_ms) {
+    adc_.start(mode, fs);
+    mark_ = now_ms;
+    // Generous: twice the datasheet time plus the 1 ms oscillator start and tick jitter.
+    timeout_ms_ = static_cast<uint16_t>(2 * expected_ms + 10);
+  }
+  uint32_t wait_budget(uint32_t now_ms) const {
+    const uint32_t elapsed = now_ms - mark_;
+    return elapsed >= timeout_ms_ ? 0 : timeout_ms_ - elapsed;
+  }
+  uint32_t check_timeout(uint32_t now_ms) {
+    if (now_ms - mark_ <= timeout_ms_) return wait_budget(now_ms) + 1;
+    adc_.finish();
+    ++counters_.adc_timeouts;
+    fail_sweep(wire::kFaultAdc);
+    state_ = kStart;  // reset and re-identify: the chip may have vanished or locked up
+    return 0;
+  }
+
+  // Marks every channel of the current (or next requested) sweep as failed and publishes it.
+  void fail_sweep(uint8_t fault) {
+    for (uint8_t i = 0; i < kChannels; ++i) {
+      readings_[i].faults = fault;
+      readings_[i].code = 0;
+      readings_[i].r_ohm = 0.0f;
+    }
+    const bool in_sweep = state_ == kConvStart || state_ == kConvWait || state_ == kBurnWait;
+    if (in_sweep || sweep_requested_) {
+      sweep_requested_ = false;
+      sweep_ready_ = true;
+    }
+  }
+
+  void evaluate(uint8_t ch, uint8_t status, uint32_t code) {
+    ChannelReading& r = readings_[ch];
+    r.code = code;
+    uint8_t faults = 0;
+    if ((status & ad7794::kStatusChannelMask) != (ch & ad7794::kStatusChannelMask) ||
+        (status & ad7794::kStatusNotReady)) {
+      faults |= wire::kFaultAdc;  // not the conversion we asked for
+    }
+    if (status & ad7794::kStatusNoXref) {
+      faults |= wire::kFaultReference;
+    } else if (status & ad7794::kStatusErr) {
+      faults |= code == 0 ? wire::kFaultShort : wire::kFaultOpen;
+    }
+    if (chip_ == AdcChip::kAd7795) code <<= 8;
+    const float gain = static_cast<float>(ad7794::gain_of_code(setup_.gain_code));
+    r.r_ohm = setup_.r_ref_ohm * (static_cast<float>(code) / (16777216.0f * gain));
+    if (faults == 0 && r.r_ohm < kShortBelowOhm) faults |= wire::kFaultShort;
+    r.faults = faults;
+  }
+
+  bool registers_intact() {
+    const uint16_t mode = adc_.read16(ad7794::kRegMode);
+    const uint16_t config = adc_.read16(ad7794::kRegConfig);
+    const uint8_t io = adc_.read8(ad7794::kRegIo);
+    const uint8_t md = ad7794::mode_of(mode);
+    const bool mode_ok = (md == ad7794::kModeIdle || md == ad7794::kModePowerDown) &&
+                         (mode & ~ad7794::kModeMdMask & ~ad7794::kModeFsMask) == 0;
+    return mode_ok && config == last_config_ && io == kIoWord;
+  }
+
+  void end_sweep() {
+    sweep_ready_ = true;
+    if (!registers_intact()) {
+      ++counters_.silent_resets;
+      for (uint8_t i = 0; i < kChannels; ++i) readings_[i].faults |= wire::kFaultAdc;
+      state_ = kStart;
+      return;
+    }
+    ++sweeps_since_cal_;
+    if (setup_.recalibrate_sweeps != 0 && sweeps_since_cal_ >= setup_.recalibrate_sweeps) {
+      channel_ = first_enabled(0);
+      state_ = kCalStart;
+      return;
+    }
+    state_ = kIdle;
+  }
+
+  Ad7794<Spi> adc_;
+  AcquisitionSetup setup_;
+  AdcCalibration cal_[kChannels];
+  ChannelReading readings_[kChannels];
+  AcquisitionCounters counters_;
+  uint32_t mark_ = 0;
+  uint32_t entropy_ = 0x9E3779B9UL;
+  uint16_t timeout_ms_ = 0;
+  uint16_t last_config_ = 0;
+  uint16_t sweeps_since_cal_ = 0;
+  State state_ = kStart;
+  uint8_t channel_ = 0;
+  AdcChip chip_ = AdcChip::kNone;
+  bool calibrated_ = false;
+  bool sweep_requested_ = false;
+  bool sweep_ready_ = false;
+};
+
+}  // namespace btsm
+
+#endif

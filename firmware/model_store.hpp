@@ -1,0 +1,289 @@
+// Reduced-model store in EEPROM (two slots, see firmware/eeprom_layout.hpp) and the authenticated
+// upload session (MODEL_BEGIN / MODEL_CHUNK / MODEL_COMMIT).
+//
+// RAM is the constraint: a 464-byte blob buffer does not fit next to everything else on the
+// ATmega328P, so chunks are streamed straight into the inactive slot while HMAC and CRC run
+// incrementally, and blobs are parsed from EEPROM field by field (the common decode() wants the
+// whole blob in RAM). The parsed model is checked with the common validate().
+//
+// Upload: begin() erases the target slot's commit marker and starts
+// HMAC-SHA256(device key, nonce || blob); chunks must arrive in order; commit() checks the tag
+// (constant time), the MODEL_BEGIN CRC-32 against the bytes read back from EEPROM, then parses and
+// validates the blob into the caller's model. Only then are sequence, CRC and the commit marker
+// written (marker last). Any failure leaves the old slot active; the nonce is single-use (every
+// begin() needs a fresh one and commit() ends the session whatever its outcome).
+#ifndef BTSM_FIRMWARE_MODEL_STORE_HPP
+#define BTSM_FIRMWARE_MODEL_STORE_HPP
+
+#include <stdint.h>
+
+#include "common/byte_order.hpp"
+#include "common/crc.hpp"
+#include "common/hmac.hpp"
+#include "common/reduced_model.hpp"
+#include "common/wire_messages.hpp"
+#include "firmware/eeprom_layout.hpp"
+#include "firmware/eeprom_writer.hpp"
+
+namespace btsm {
+
+template <class Storage>
+class ModelStore {
+ public:
+  typedef wire::Nack Nack;
+
+  explicit ModelStore(Storage& storage) : storage_(storage), writer_(storage) {}
+
+  // ---- boot ---------------------------------------------------------------------------------
+
+  // Finds the valid slot with the highest sequence number and loads it into `model`.
+  // A slot whose CRC is fine but whose content fails validation is skipped (state Rejected when
+  // nothing else is usable).
+  void boot(ReducedModel& model) {
+    active_slot_ = kNoSlot;
+    state_ = wire::ModelState::None;
+    uint8_t order[2] = {0, 1};
+    uint32_t seq[2] = {0, 0};
+    bool ok[2] = {slot_intact(0, seq[0]), slot_intact(1, seq[1])};
+    if (ok[0] && ok[1] && seq[1] > seq[0]) {
+      order[0] = 1;
+      order[1] = 0;
+    }
+    next_seq_ = 1;
+    for (uint8_t i = 0; i < 2; ++i) {
+      if (ok[i] && seq[i] >= next_seq_) next_seq_ = seq[i] + 1;
+    }
+    for (uint8_t k = 0; k < 2; ++k) {
+      const uint8_t s = order[k];
+      if (!ok[s]) continue;
+      if (load_slot(s, model).ok()) {
+        active_slot_ = s;
+        active_seq_ = seq[s];
+        state_ = wire::ModelState::Active;
+        return;
+      }
+      state_ = wire::ModelState::Rejected;
+    }
+  }
+
+  wire::ModelState state() const { return state_; }
+  bool active() const { return state_ == wire::ModelState::Active; }
+  uint32_t active_seq() const { return active() ? active_seq_ : 0; }
+  // CRC-32 stored inside the active blob (INFO model_crc), 0 without a model.
+  uint32_t active_blob_crc() const {
+    if (!active()) return 0;
+    uint8_t b[4];
+    read_bytes(static_cast<uint16_t>(eeprom_layout::blob_addr(active_slot_) + kBlobOffCrc), b, 4);
+    return get_le32(b);
+  }
+  uint8_t read_active_byte(uint16_t offset) const {
+    return storage_.read(static_cast<uint16_t>(eeprom_layout::blob_addr(active_slot_) + offset));
+  }
+
+  // ---- upload session -----------------------------------------------------------------------
+
+  bool busy() const { return writer_.busy(); }
+  // Advances pending EEPROM writes; true when none are left.
+  bool step() { return writer_.step(); }
+  bool session_open() const { return session_ != kNoSession; }
+  uint16_t expected_offset() const { return received_; }
+
+  // `key_record` is the device key record (firmware/device_key.hpp layout, already validated).
+  Nack begin(uint16_t total_len, uint32_t blob_crc, const uint8_t* nonce, uint8_t nonce_len,
+             const uint8_t* key, uint8_t key_len) {
+    if (busy()) return Nack::Busy;
+    if (total_len != eeprom_layout::kBlobSize) return Nack::BadLength;
+    target_slot_ = active_slot_ == 0 ? 1 : 0;
+    session_ = kReceiving;
+    received_ = 0;
+    expected_crc_ = blob_crc;
+    running_crc_ = 0;
+    mac_.init(key, key_len);
+    mac_.update(nonce, nonce_len);
+    // Erase the commit marker of the target slot before any blob byte changes.
+    const uint8_t erased[2] = {0xFF, 0xFF};
+    writer_.queue(eeprom_layout::slot_addr(target_slot_), erased, 2);
+    return Nack::Ok;
+  }
+
+  // Queues one chunk. `detail` gets the expected offset on BadOffset.
+  Nack chunk(uint16_t offset, const uint8_t* data, uint8_t len, uint16_t& detail) {
+    detail = 0;
+    if (session_ != kReceiving) return Nack::NoSession;
+    if (busy()) return Nack::Busy;
+    if (offset != received_) {
+      detail = received_;
+      return Nack::BadOffset;
+    }
+    if (static_cast<uint32_t>(offset) + len > eeprom_layout::kBlobSize) {
+      detail = eeprom_layout::kBlobSize;
+      return Nack::BadOffset;
+    }
+    writer_.queue(static_cast<uint16_t>(eeprom_layout::blob_addr(target_slot_) + offset), data, len);
+    mac_.update(data, len);
+    running_crc_ = crc32(data, len, running_crc_);
+    received_ = static_cast<uint16_t>(received_ + len);
+    return Nack::Ok;
+  }
+
+  // Checks the tag and the stored blob, parses it into `model` and queues the slot header.
+  // On any failure the session ends and `model` is reloaded from the active slot (callers must
+  // pass their live model: parsing happens in place to save 460 bytes of RAM).
+  Nack commit(const uint8_t* tag, ReducedModel& model, uint16_t& detail) {
+    detail = 0;
+    if (session_ != kReceiving) return Nack::NoSession;
+    if (busy()) return Nack::Busy;
+    session_ = kNoSession;  // single use, whatever happens next
+    uint8_t expected[kHmacSha256Size];
+    mac_.final(expected);
+    const bool tag_ok = constant_time_equal(expected, tag, kHmacSha256Size);
+    secure_zero(expected, sizeof expected);
+    if (!tag_ok) return Nack::AuthFailed;
+    if (received_ != eeprom_layout::kBlobSize) {
+      detail = received_;
+      return Nack::BadLength;
+    }
+    if (running_crc_ != expected_crc_) return Nack::BlobCrc;
+    uint32_t stored_crc = 0;
+    for (uint16_t i = 0; i < eeprom_layout::kBlobSize; ++i) {
+      const uint8_t b = storage_.read(static_cast<uint16_t>(eeprom_layout::blob_addr(target_slot_) + i));
+      stored_crc = crc32(&b, 1, stored_crc);
+    }
+    if (stored_crc != running_crc_) return Nack::StoreFailed;  // EEPROM did not keep the bytes
+    const ModelCheck check = load_slot(target_slot_, model);
+    if (!check.ok()) {
+      detail = check.detail();
+      reload_active(model);
+      switch (model_status_class(check.status)) {
+        case ModelStatusClass::kCrc: return Nack::BlobCrc;
+        case ModelStatusClass::kVersion: return Nack::BlobVersion;
+        default: return Nack::BlobInvalid;
+      }
+    }
+    // Sequence + CRC first, commit marker last.
+    uint8_t hdr[8];
+    put_le32(hdr, next_seq_);
+    uint8_t seq_le[4];
+    put_le32(seq_le, next_seq_);
+    put_le32(hdr + 4, slot_crc(seq_le));
+    const uint16_t base = eeprom_layout::slot_addr(target_slot_);
+    uint8_t len_le[2];
+    put_le16(len_le, eeprom_layout::kBlobSize);
+    // Header bytes 2..11 (seq, crc, len) in one segment, then the marker.
+    uint8_t body[10];
+    for (uint8_t i = 0; i < 8; ++i) body[i] = hdr[i];
+    body[8] = len_le[0];
+    body[9] = len_le[1];
+    const uint8_t marker[2] = {eeprom_layout::kMarker0, eeprom_layout::kMarker1};
+    writer_.queue(static_cast<uint16_t>(base + eeprom_layout::kHdrSeq), body, 10);
+    writer_.queue(static_cast<uint16_t>(base + eeprom_layout::kHdrMarker), marker, 2);
+    pending_activation_ = true;
+    return Nack::Ok;
+  }
+
+  // After commit() returned Ok and step() finished the writes: switch to the new slot.
+  bool activation_pending() const { return pending_activation_; }
+  void activate_committed() {
+    pending_activation_ = false;
+    active_slot_ = target_slot_;
+    active_seq_ = next_seq_;
+    ++next_seq_;
+    state_ = wire::ModelState::Active;
+  }
+
+  void abort_session() { session_ = kNoSession; }
+
+  // Parses and validates the blob of `slot` from EEPROM into `out` (same checks and order as the
+  // common decode(): CRC, magic, version, content). `out` is modified even on failure.
+  ModelCheck load_slot(uint8_t slot, ReducedModel& out) const {
+    const uint16_t base = eeprom_layout::blob_addr(slot);
+    uint32_t crc = 0;
+    for (uint16_t i = 0; i < kBlobOffCrc; ++i) {
+      const uint8_t b = storage_.read(static_cast<uint16_t>(base + i));
+      crc = crc32(&b, 1, crc);
+    }
+    uint8_t buf[kBlobBreakpointSize];
+    read_bytes(static_cast<uint16_t>(base + kBlobOffCrc), buf, 4);
+    if (crc != get_le32(buf)) return model_check(ModelStatus::kBadCrc);
+    read_bytes(base, buf, 10);
+    if (get_le32(buf + kBlobOffMagic) != kReducedModelMagic) return model_check(ModelStatus::kBadMagic);
+    if (buf[kBlobOffVersion] != kReducedModelVersion) return model_check(ModelStatus::kBadVersion);
+    out.version = buf[kBlobOffVersion];
+    out.n_breakpoints = buf[kBlobOffBreakpointCount];
+    out.ambient_channel = buf[kBlobOffAmbientChannel];
+    out.enabled_mask = buf[kBlobOffEnabledMask];
+    out.dt_ms = get_le16(buf + kBlobOffDtMs);
+    for (uint8_t i = 0; i < kModelMaxBreakpoints; ++i) {
+      read_bytes(static_cast<uint16_t>(base + kBlobOffSpeeds + 2 * i), buf, 2);
+      out.speed_rpm[i] = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffBreakpoints + kBlobBreakpointSize * i), buf,
+                 kBlobBreakpointSize);
+      decode_breakpoint(buf, out.bp[i]);
+    }
+    for (uint8_t j = 0; j < kModelChannels; ++j) {
+      read_bytes(static_cast<uint16_t>(base + kBlobOffWarnBands + 2 * j), buf, 2);
+      out.limits[j].warn_band_mK = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffAlarmBands + 2 * j), buf, 2);
+      out.limits[j].alarm_band_mK = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffAbsLimits + 4 * j), buf, 4);
+      out.limits[j].abs_limit_mK = static_cast<int32_t>(get_le32(buf));
+      read_bytes(static_cast<uint16_t>(base + kBlobOffMaxRise + 2 * j), buf, 2);
+      out.limits[j].max_rise_mK_per_min = get_le16(buf);
+    }
+    return validate(out);
+  }
+
+ private:
+  enum Session : uint8_t { kNoSession, kReceiving };
+  static constexpr uint8_t kNoSlot = 0xFF;
+
+  void read_bytes(uint16_t addr, uint8_t* out, uint8_t n) const {
+    for (uint8_t i = 0; i < n; ++i) out[i] = storage_.read(static_cast<uint16_t>(addr + i));
+  }
+
+  uint32_t slot_crc(const uint8_t* seq_le) const {
+    uint32_t crc = crc32(seq_le, 4);
+    for (uint16_t i = 0; i < eeprom_layout::kBlobSize; ++i) {
+      const uint8_t b = storage_.read(static_cast<uint16_t>(eeprom_layout::blob_addr(target_slot_) + i));
+      crc = crc32(&b, 1, crc);
+    }
+    return crc;
+  }
+
+  // Marker, length and CRC(seq || blob) match.
+  bool slot_intact(uint8_t slot, uint32_t& seq) const {
+    uint8_t h[eeprom_layout::kSlotHeaderSize];
+    read_bytes(eeprom_layout::slot_addr(slot), h, eeprom_layout::kSlotHeaderSize);
+    if (h[0] != eeprom_layout::kMarker0 || h[1] != eeprom_layout::kMarker1) return false;
+    if (get_le16(h + eeprom_layout::kHdrLen) != eeprom_layout::kBlobSize) return false;
+    seq = get_le32(h + eeprom_layout::kHdrSeq);
+    uint32_t crc = crc32(h + eeprom_layout::kHdrSeq, 4);
+    for (uint16_t i = 0; i < eeprom_layout::kBlobSize; ++i) {
+      const uint8_t b = storage_.read(static_cast<uint16_t>(eeprom_layout::blob_addr(slot) + i));
+      crc = crc32(&b, 1, crc);
+    }
+    return crc == get_le32(h + eeprom_layout::kHdrCrc);
+  }
+
+  void reload_active(ReducedModel& model) {
+    if (active_slot_ != kNoSlot) load_slot(active_slot_, model);
+  }
+
+  Storage& storage_;
+  EepromWriter<Storage> writer_;
+  HmacSha256 mac_;
+  uint32_t expected_crc_ = 0;
+  uint32_t running_crc_ = 0;
+  uint32_t next_seq_ = 1;
+  uint32_t active_seq_ = 0;
+  uint16_t received_ = 0;
+  uint8_t active_slot_ = kNoSlot;
+  uint8_t target_slot_ = 0;
+  Session session_ = kNoSession;
+  wire::ModelState state_ = wire::ModelState::None;
+  bool pending_activation_ = false;
+};
+
+}  // namespace btsm
+
+#endif

@@ -1,0 +1,117 @@
+// btsm rtd r2t|t2r — Callendar–Van Dusen conversions (IEC 60751) with the same code the firmware
+// runs (common/rtd.hpp), in double precision.
+#include "cli_support.hpp"
+#include "commands.hpp"
+#include "common/rtd.hpp"
+
+#include <fmt/core.h>
+
+#include <cerrno>
+#include <cmath>
+#include <cstdlib>
+#include <memory>
+#include <string>
+#include <vector>
+
+namespace btsm::cli {
+namespace {
+
+struct RtdOptions {
+  double r0_ohm = 1000.0;
+  bool json = false;
+  std::vector<std::string> values;
+};
+
+enum class Direction { kResistanceToTemperature, kTemperatureToResistance };
+
+// Strict number parsing: the whole argument must be a finite decimal number.
+bool parse_number(const std::string& text, double& out) {
+  if (text.empty()) return false;
+  errno = 0;
+  char* end = nullptr;
+  out = std::strtod(text.c_str(), &end);
+  return errno == 0 && end == text.c_str() + text.size() && std::isfinite(out);
+}
+
+void run(const RtdOptions& o, Direction dir) {
+  if (!std::isfinite(o.r0_ohm) || o.r0_ohm <= 0.0)
+    throw CommandError(kExitUsage, fmt::format("--r0 must be a positive resistance in ohm, got {}", o.r0_ohm));
+  const RtdCoefficients<double> k = iec60751<double>(o.r0_ohm);
+  const bool r2t = dir == Direction::kResistanceToTemperature;
+  const char* in_unit = r2t ? "ohm" : "degC";
+
+  // Convert everything first so that bad input produces one error naming every bad value and no
+  // partial output.
+  std::vector<double> results;
+  std::vector<std::string> errors;
+  for (size_t i = 0; i < o.values.size(); ++i) {
+    const std::string& v = o.values[i];
+    double x = 0.0;
+    if (!parse_number(v, x)) {
+      errors.push_back(fmt::format("value #{} '{}' is not a number ({} expected)", i + 1, v, in_unit));
+      continue;
+    }
+    const RtdResult<double> r = r2t ? rtd_temperature(k, x) : rtd_resistance(k, x);
+    if (!r.ok()) {
+      const std::string range =
+          r2t ? fmt::format("valid {:.4f}...{:.4f} ohm for R0 = {} ohm", rtd_resistance(k, -200.0).value,
+                            rtd_resistance(k, 850.0).value, o.r0_ohm)
+              : std::string("valid -200...850 degC");
+      errors.push_back(fmt::format("value #{} '{}' {}: {} ({})", i + 1, v, in_unit, rtd_status_name(r.status), range));
+      continue;
+    }
+    results.push_back(r.value);
+  }
+  if (!errors.empty()) {
+    std::string msg = errors.front();
+    for (size_t i = 1; i < errors.size(); ++i) msg += "; " + errors[i];
+    throw CommandError(kExitUsage, msg);
+  }
+  if (o.json) {
+    nlohmann::json arr = nlohmann::json::array();
+    for (size_t i = 0; i < results.size(); ++i) {
+      nlohmann::json e;
+      e[r2t ? "resistance_ohm" : "temperature_c"] = std::strtod(o.values[i].c_str(), nullptr);
+      e[r2t ? "temperature_c" : "resistance_ohm"] = results[i];
+      arr.push_back(e);
+    }
+    print_json(nlohmann::json{{"r0_ohm", o.r0_ohm}, {"standard", "IEC 60751"}, {"results", arr}});
+    return;
+  }
+  // 4 decimals: 0.1 mK / 0.1 mohm, finer than any table or measurement it is compared with.
+  for (double r : results) fmt::print("{:.4f}\n", r);
+}
+
+void add_direction(CLI::App& rtd, const char* name, const char* help, Direction dir) {
+  auto opts = std::make_shared<RtdOptions>();
+  CLI::App* cmd = rtd.add_subcommand(name, help);
+  cmd->add_option("--r0", opts->r0_ohm, "resistance at 0 degC in ohm (100 = Pt100, 1000 = Pt1000)")
+      ->capture_default_str();
+  cmd->add_flag("--json", opts->json, "print {r0_ohm, standard, results:[{input, output}]} as JSON");
+  cmd->add_option("values", opts->values,
+                  dir == Direction::kResistanceToTemperature
+                      ? "resistances in ohm"
+                      : "temperatures in degC, -200...850")
+      ->required();
+  cmd->callback([opts, dir]() { run(*opts, dir); });
+}
+
+}  // namespace
+
+void register_rtd_commands(CLI::App& app) {
+  CLI::App* rtd = app.add_subcommand(
+      "rtd",
+      "Platinum RTD conversions, Callendar-Van Dusen with IEC 60751 coefficients (A = 3.9083e-3, "
+      "B = -5.775e-7, C = -4.183e-12 below 0 degC), exact inverse over -200...850 degC");
+  rtd->require_subcommand(1);
+  add_direction(*rtd, "r2t",
+                "resistance (ohm) -> temperature (degC), one result per line, 4 decimals; out-of-range "
+                "or non-numeric input is an error naming the value (exit code 2)",
+                Direction::kResistanceToTemperature);
+  add_direction(*rtd, "t2r",
+                "temperature (degC) -> resistance (ohm), one result per line, 4 decimals; out-of-range "
+                "or non-numeric input is an error naming the value (exit code 2)",
+                Direction::kTemperatureToResistance);
+}
+
+}  // namespace btsm::cli

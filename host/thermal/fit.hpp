@@ -1,0 +1,108 @@
+#pragma once
+// Output-error fitting of a thermal network to one or more recordings.
+//
+// Model: the exact ZOH simulator (simulator.hpp) started from a per-recording initial state;
+// residual = predicted - measured temperature for every measured (non-missing) cell of every
+// column listed in Network::measurements. Parameters are fitted in log space (or linearly when
+// Parameter::log_scale is false) within their bounds by a Levenberg-Marquardt solver whose
+// Jacobian comes from forward sensitivity propagation (dx_k/dp recursed with the step matrices).
+//
+// Scale gauge: (C, G, Q) -> k (C, G, Q) leaves all temperatures unchanged, so the absolute level is
+// fixed by a known total capacitance sum C_i (FitOptions::sum_capacitance_J_per_K, else
+// Network::sum_capacitance_J_per_K) or by at least one fixed parameter; the fit refuses to run
+// without one. FitResult::gauge says which.
+//
+// Default pipeline (FitOptions::staged = true, no initial guess needed):
+//   1. cooling segments: linear integral equation-error start  C_i dT_i = sum_l g_l int(T_j - T_i) dt
+//   2. output-error refinement of the cooling-mode parameters on the cooling segments
+//   3. operating-only parameters: equation-error start (unmeasured nodes filled quasi-statically
+//      and rescaled to the next measured value), then output error over whole recordings
+//   4. joint output-error fit of every free parameter over all recordings
+// A parameter with a numeric `initial` (or FitOptions::start) is started there instead of step 1/3.
+//
+// Augmented networks (heat/residual engineer): add parameters/links/sources to a Network, pass the
+// base fit's values in FitOptions::start, list the parameters to fit in FitOptions::free_only
+// (others held), and use FitOptions::extra_heat_w for known extra heat inputs per recording.
+#include "network.hpp"
+#include "recording.hpp"
+
+#include <Eigen/Core>
+
+#include <functional>
+#include <limits>
+#include <string>
+#include <vector>
+
+namespace btsm::thermal {
+
+enum class InitialState {
+  Estimate,       // per-recording initial state is a free nuisance parameter (default)
+  FirstSamples,   // measured first row; unmeasured nodes = ambient + mean measured rise
+};
+
+struct FitOptions {
+  double sum_capacitance_J_per_K = std::numeric_limits<double>::quiet_NaN();  // gauge override, J/K
+  InitialState initial_state = InitialState::Estimate;
+  bool staged = true;                 // the cooling-first pipeline above; false = joint fit only
+  Eigen::VectorXd start;              // optional start values (size = params; NaN = use default)
+  std::vector<std::string> free_only; // if not empty: fit only these parameters, hold the rest
+  std::vector<std::string> hold;      // parameters held at their start value in addition to "fixed"
+  std::vector<Eigen::MatrixXd> extra_heat_w;  // optional, per recording rows x nodes, W (known inputs)
+  int max_iterations = 60;            // per Levenberg-Marquardt stage
+  double relative_tolerance = 1e-10;  // stop when the cost decreases less than this (relative)
+  double weak_relative_sigma = 0.05;  // 1 sigma above this fraction of |value| = weakly identified
+  double unidentifiable_relative_sigma = 0.5;  // ... above this = not identifiable
+  double correlation_warning = 0.99;  // |correlation| above this is reported
+  std::function<void(const std::string&)> progress;  // stage messages (e.g. to stderr)
+};
+
+enum class Identifiability { Fixed, Good, Weak, NotIdentifiable };
+const char* identifiability_name(Identifiability i);
+
+struct ParameterEstimate {
+  std::string name, unit;
+  double value = 0;
+  double sigma = 0;                 // 1 sigma, Gauss-Newton, scaled by the residual variance
+  Identifiability status = Identifiability::Good;
+  bool at_bound = false;
+  std::string note;                 // correlation / singular-direction warnings
+};
+
+struct StageSummary {
+  std::string name;
+  int iterations = 0;
+  double rms_K = 0;                 // residual rms at the end of the stage
+  double seconds = 0;
+};
+
+struct FitResult {
+  Eigen::VectorXd params;                     // all parameters (held ones at their value)
+  Eigen::MatrixXd covariance;                 // params x params (zero rows/cols for held ones)
+  std::vector<ParameterEstimate> estimates;   // one per parameter, in network order
+  std::vector<Eigen::VectorXd> initial_states;// per recording, degC per node
+  std::vector<Eigen::MatrixXd> residuals_K;   // per recording rows x measurements, NaN = missing
+  double rms_K = 0;
+  double residual_sigma_K = 0;                // sqrt(SSR / (N - free unknowns))
+  std::size_t residual_count = 0;
+  int free_parameter_count = 0;
+  double condition_number = 0;                // of the scaled normal matrix (params + initial states)
+  std::string gauge;                          // how the scale gauge was fixed
+  bool converged = false;
+  std::vector<StageSummary> stages;
+  std::vector<std::string> warnings;
+  double seconds = 0;
+};
+
+// Throws std::invalid_argument on inconsistent input (missing measurement column, no gauge, ...).
+FitResult fit_network(const Network& net, const std::vector<Recording>& recs, const FitOptions& opts = {});
+
+// Residuals (predicted - measured, rows x measurements, NaN = missing) for given parameters and
+// initial state; the building block of validation and residual analysis.
+Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
+                                     const Eigen::VectorXd& x0_c, const Eigen::MatrixXd* extra_heat_w = nullptr);
+// Channel index in `rec` of each measurement of `net`; throws naming the missing column.
+std::vector<int> measurement_columns(const Network& net, const Recording& rec);
+// Initial state guess from the first row (unmeasured nodes = ambient + mean measured rise).
+Eigen::VectorXd first_sample_state(const Network& net, const Recording& rec);
+
+}  // namespace btsm::thermal

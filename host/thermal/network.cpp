@@ -1,0 +1,402 @@
+// Network description: JSON codec, validation, presets and assembly of the node matrices.
+#include "network.hpp"
+
+#include "spindle4_preset.hpp"  // generated: kSpindle4Json (presets/spindle4.json)
+
+#include <cmath>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace btsm::thermal {
+namespace {
+
+using nlohmann::json;
+
+[[noreturn]] void bad(const std::string& src, const std::string& where, const std::string& what) {
+  throw std::invalid_argument(src + ": " + where + ": " + what);
+}
+
+double get_number(const json& j, const char* key, double def, const std::string& src, const std::string& where) {
+  if (!j.contains(key) || j.at(key).is_null()) return def;
+  const json& v = j.at(key);
+  if (!v.is_number()) bad(src, where, std::string("field '") + key + "' must be a number, found " + v.dump());
+  const double d = v.get<double>();
+  if (!std::isfinite(d)) bad(src, where, std::string("field '") + key + "' is not finite");
+  return d;
+}
+
+std::string get_string(const json& j, const char* key, const std::string& src, const std::string& where) {
+  if (!j.contains(key)) bad(src, where, std::string("missing field '") + key + "'");
+  if (!j.at(key).is_string()) bad(src, where, std::string("field '") + key + "' must be a string, found " + j.at(key).dump());
+  return j.at(key).get<std::string>();
+}
+
+void check_keys(const json& j, std::initializer_list<const char*> allowed, const std::string& src, const std::string& where) {
+  if (!j.is_object()) bad(src, where, "must be a JSON object, found " + j.dump());
+  for (auto it = j.begin(); it != j.end(); ++it) {
+    bool ok = false;
+    for (const char* a : allowed) ok = ok || it.key() == a;
+    if (!ok) bad(src, where, "unknown field '" + it.key() + "'");
+  }
+}
+
+std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, const std::string& src, const std::string& where) {
+  std::vector<Term> out;
+  if (!arr.is_array()) bad(src, where, "must be an array of terms");
+  for (std::size_t i = 0; i < arr.size(); ++i) {
+    const std::string w = where + "[" + std::to_string(i) + "]";
+    const json& t = arr[i];
+    check_keys(t, {"resistance", "conductance", "power", "speed_exponent"}, src, w);
+    Term term;
+    int kinds = 0;
+    std::string pname;
+    if (t.contains("resistance")) { term.kind = TermKind::Resistance; pname = get_string(t, "resistance", src, w); ++kinds; }
+    if (t.contains("conductance")) { term.kind = TermKind::Conductance; pname = get_string(t, "conductance", src, w); ++kinds; }
+    if (t.contains("power")) { term.kind = TermKind::Power; pname = get_string(t, "power", src, w); ++kinds; }
+    if (kinds != 1) bad(src, w, link ? "a link term needs exactly one of 'resistance' or 'conductance'" : "a source term needs 'power'");
+    if (link && term.kind == TermKind::Power) bad(src, w, "'power' terms belong to sources, not links");
+    if (!link && term.kind != TermKind::Power) bad(src, w, "source terms use 'power'");
+    term.param = net.param_index(pname);
+    if (term.param < 0) bad(src, w, "unknown parameter '" + pname + "' (declare it in 'parameters')");
+    term.speed_exponent = get_number(t, "speed_exponent", 0.0, src, w);
+    out.push_back(term);
+  }
+  return out;
+}
+
+json terms_to_json(const Network& net, const std::vector<Term>& terms) {
+  json arr = json::array();
+  for (const auto& t : terms) {
+    json j;
+    const char* k = t.kind == TermKind::Resistance ? "resistance" : t.kind == TermKind::Conductance ? "conductance" : "power";
+    j[k] = net.params[static_cast<std::size_t>(t.param)].name;
+    if (t.speed_exponent != 0.0) j["speed_exponent"] = t.speed_exponent;
+    arr.push_back(j);
+  }
+  return arr;
+}
+
+// Adds the "both" terms to operating and cooling lists.
+void read_mode_terms(const Network& net, const json& j, bool link, std::vector<Term>& op, std::vector<Term>& cool,
+                     const std::string& src, const std::string& where) {
+  if (j.contains("both")) {
+    auto both = parse_terms(net, j.at("both"), link, src, where + ".both");
+    op.insert(op.end(), both.begin(), both.end());
+    cool.insert(cool.end(), both.begin(), both.end());
+  }
+  if (j.contains("operating")) {
+    auto t = parse_terms(net, j.at("operating"), link, src, where + ".operating");
+    op.insert(op.end(), t.begin(), t.end());
+  }
+  if (j.contains("cooling")) {
+    auto t = parse_terms(net, j.at("cooling"), link, src, where + ".cooling");
+    cool.insert(cool.end(), t.begin(), t.end());
+  }
+}
+
+double term_value(const Term& t, const Eigen::VectorXd& p, double s) {
+  const double v = p[t.param];
+  return t.speed_exponent == 0.0 ? v : v * std::pow(s, t.speed_exponent);
+}
+
+}  // namespace
+
+const char* mode_name(Mode m) { return m == Mode::Operating ? "operating" : "cooling"; }
+
+int Network::param_index(const std::string& n) const {
+  for (std::size_t i = 0; i < params.size(); ++i)
+    if (params[i].name == n) return static_cast<int>(i);
+  return -1;
+}
+
+int Network::node_index(const std::string& n) const {
+  for (std::size_t i = 0; i < nodes.size(); ++i)
+    if (nodes[i].name == n) return static_cast<int>(i);
+  return -1;
+}
+
+int Network::add_parameter(const Parameter& p) {
+  if (param_index(p.name) >= 0) throw std::invalid_argument("network " + name + ": parameter '" + p.name + "' already exists");
+  params.push_back(p);
+  return static_cast<int>(params.size()) - 1;
+}
+
+std::vector<std::string> Network::param_names() const {
+  std::vector<std::string> v;
+  for (const auto& p : params) v.push_back(p.name);
+  return v;
+}
+
+void Network::validate() const {
+  const std::string src = "network '" + name + "'";
+  if (nodes.empty()) bad(src, "nodes", "at least one node is required");
+  if (!(speed_ref_rpm > 0)) bad(src, "speed_ref_rpm", "must be > 0");
+  if (!(operating_above_rpm >= 0)) bad(src, "operating_above_rpm", "must be >= 0");
+  if (!std::isnan(sum_capacitance_J_per_K) && !(sum_capacitance_J_per_K > 0))
+    bad(src, "sum_capacitance_J_per_K", "must be > 0");
+  for (const auto& p : params) {
+    const std::string w = "parameter '" + p.name + "'";
+    if (p.name.empty()) bad(src, "parameters", "a parameter has an empty name");
+    if (!(p.min < p.max)) bad(src, w, "min must be < max");
+    if (p.log_scale && !(p.min > 0)) bad(src, w, "log-scaled parameters need min > 0 (set \"log\": false for ones that may be 0)");
+    if (!p.initial_auto && (!std::isfinite(p.initial) || p.initial < p.min || p.initial > p.max))
+      bad(src, w, "initial value outside [min, max]");
+    if (p.fixed && p.initial_auto && std::isnan(p.nominal)) bad(src, w, "a fixed parameter needs a value ('initial' or 'nominal')");
+  }
+  auto check_param = [&](int idx, const std::string& w) {
+    if (idx < 0 || idx >= param_count()) bad(src, w, "parameter index out of range");
+  };
+  for (const auto& n : nodes) {
+    check_param(n.capacitance_param, "node '" + n.name + "' capacitance");
+    for (const auto& m : nodes)
+      if (&m != &n && m.name == n.name) bad(src, "node '" + n.name + "'", "duplicate node name");
+    if (n.name == "ambient") bad(src, "nodes", "'ambient' is reserved for the boundary");
+  }
+  auto check_terms = [&](const std::vector<Term>& ts, const std::string& w, bool cooling) {
+    for (const auto& t : ts) {
+      check_param(t.param, w);
+      if (!std::isfinite(t.speed_exponent)) bad(src, w, "speed_exponent not finite");
+      if (cooling && t.speed_exponent != 0.0 && operating_above_rpm == 0.0)
+        bad(src, w + " (cooling)", "cooling-mode terms must have speed_exponent 0 (the speed is 0 there)");
+    }
+  };
+  for (const auto& l : links) {
+    const std::string w = "link '" + l.name + "'";
+    if (l.a < 0 || l.a >= node_count()) bad(src, w, "first end is not a node");
+    if (l.b != kAmbient && (l.b < 0 || l.b >= node_count())) bad(src, w, "second end is not a node or ambient");
+    if (l.a == l.b) bad(src, w, "a link must join two different nodes");
+    if (l.operating.empty() && l.cooling.empty()) bad(src, w, "has no terms");
+    check_terms(l.operating, w, false);
+    check_terms(l.cooling, w, true);
+  }
+  for (const auto& s : sources) {
+    const std::string w = "source '" + s.name + "'";
+    if (s.node < 0 || s.node >= node_count()) bad(src, w, "node out of range");
+    check_terms(s.operating, w, false);
+    check_terms(s.cooling, w, true);
+  }
+  for (const auto& m : measurements)
+    if (m.node < 0 || m.node >= node_count()) bad(src, "measurement '" + m.column + "'", "node out of range");
+}
+
+Network network_from_json(const json& j, const std::string& src) {
+  Network net;
+  check_keys(j, {"name", "description", "speed_ref_rpm", "operating_above_rpm", "sum_capacitance_J_per_K", "parameters", "nodes",
+                 "links", "sources", "measurements"},
+             src, "top level");
+  net.name = j.contains("name") ? get_string(j, "name", src, "top level") : std::string("network");
+  net.speed_ref_rpm = get_number(j, "speed_ref_rpm", 5000.0, src, "speed_ref_rpm");
+  net.operating_above_rpm = get_number(j, "operating_above_rpm", 0.0, src, "operating_above_rpm");
+  net.sum_capacitance_J_per_K = get_number(j, "sum_capacitance_J_per_K", std::nan(""), src, "sum_capacitance_J_per_K");
+  for (const char* k : {"parameters", "nodes", "links"})
+    if (!j.contains(k) || !j.at(k).is_array()) bad(src, k, "missing or not an array");
+  const json& ps = j.at("parameters");
+  for (std::size_t i = 0; i < ps.size(); ++i) {
+    const std::string w = "parameters[" + std::to_string(i) + "]";
+    const json& pj = ps[i];
+    check_keys(pj, {"name", "unit", "nominal", "initial", "min", "max", "fixed", "log", "description"}, src, w);
+    Parameter p;
+    p.name = get_string(pj, "name", src, w);
+    const std::string wn = "parameter '" + p.name + "'";
+    if (net.param_index(p.name) >= 0) bad(src, wn, "duplicate parameter name");
+    p.unit = pj.contains("unit") ? get_string(pj, "unit", src, wn) : "";
+    p.description = pj.contains("description") ? get_string(pj, "description", src, wn) : "";
+    p.nominal = get_number(pj, "nominal", std::nan(""), src, wn);
+    if (!pj.contains("initial") || (pj.at("initial").is_string() && pj.at("initial") == "auto")) {
+      p.initial_auto = true;
+    } else if (pj.at("initial").is_number()) {
+      p.initial = get_number(pj, "initial", 1.0, src, wn);
+      p.initial_auto = false;
+    } else {
+      bad(src, wn, "field 'initial' must be a number or \"auto\", found " + pj.at("initial").dump());
+    }
+    p.min = get_number(pj, "min", 1e-9, src, wn);
+    p.max = get_number(pj, "max", 1e9, src, wn);
+    if (pj.contains("fixed")) {
+      if (!pj.at("fixed").is_boolean()) bad(src, wn, "field 'fixed' must be true or false");
+      p.fixed = pj.at("fixed").get<bool>();
+    }
+    if (pj.contains("log")) {
+      if (!pj.at("log").is_boolean()) bad(src, wn, "field 'log' must be true or false");
+      p.log_scale = pj.at("log").get<bool>();
+    } else {
+      p.log_scale = p.min > 0;
+    }
+    net.params.push_back(p);
+  }
+  const json& ns = j.at("nodes");
+  for (std::size_t i = 0; i < ns.size(); ++i) {
+    const std::string w = "nodes[" + std::to_string(i) + "]";
+    check_keys(ns[i], {"name", "capacitance"}, src, w);
+    Node n;
+    n.name = get_string(ns[i], "name", src, w);
+    const std::string c = get_string(ns[i], "capacitance", src, "node '" + n.name + "'");
+    n.capacitance_param = net.param_index(c);
+    if (n.capacitance_param < 0) bad(src, "node '" + n.name + "'", "unknown capacitance parameter '" + c + "'");
+    net.nodes.push_back(n);
+  }
+  auto node_ref = [&](const std::string& name, bool allow_ambient, const std::string& w) {
+    if (allow_ambient && name == "ambient") return kAmbient;
+    const int idx = net.node_index(name);
+    if (idx < 0) bad(src, w, "unknown node '" + name + "'");
+    return idx;
+  };
+  const json& ls = j.at("links");
+  for (std::size_t i = 0; i < ls.size(); ++i) {
+    std::string w = "links[" + std::to_string(i) + "]";
+    check_keys(ls[i], {"name", "between", "both", "operating", "cooling"}, src, w);
+    Link l;
+    l.name = ls[i].contains("name") ? get_string(ls[i], "name", src, w) : w;
+    w = "link '" + l.name + "'";
+    const json& b = ls[i].contains("between") ? ls[i].at("between") : json();
+    if (!b.is_array() || b.size() != 2 || !b[0].is_string() || !b[1].is_string())
+      bad(src, w, "'between' must be [\"node\", \"node\" or \"ambient\"]");
+    l.a = node_ref(b[0].get<std::string>(), true, w);
+    l.b = node_ref(b[1].get<std::string>(), true, w);
+    if (l.a == kAmbient) std::swap(l.a, l.b);
+    if (l.a == kAmbient) bad(src, w, "a link cannot join ambient to itself");
+    read_mode_terms(net, ls[i], true, l.operating, l.cooling, src, w);
+    net.links.push_back(l);
+  }
+  if (j.contains("sources")) {
+    const json& ss = j.at("sources");
+    if (!ss.is_array()) bad(src, "sources", "must be an array");
+    for (std::size_t i = 0; i < ss.size(); ++i) {
+      std::string w = "sources[" + std::to_string(i) + "]";
+      check_keys(ss[i], {"name", "node", "both", "operating", "cooling"}, src, w);
+      Source s;
+      s.name = ss[i].contains("name") ? get_string(ss[i], "name", src, w) : w;
+      w = "source '" + s.name + "'";
+      s.node = node_ref(get_string(ss[i], "node", src, w), false, w);
+      read_mode_terms(net, ss[i], false, s.operating, s.cooling, src, w);
+      net.sources.push_back(s);
+    }
+  }
+  if (j.contains("measurements")) {
+    const json& ms = j.at("measurements");
+    if (!ms.is_array()) bad(src, "measurements", "must be an array");
+    for (std::size_t i = 0; i < ms.size(); ++i) {
+      const std::string w = "measurements[" + std::to_string(i) + "]";
+      check_keys(ms[i], {"column", "node"}, src, w);
+      Measurement m;
+      m.column = get_string(ms[i], "column", src, w);
+      m.node = node_ref(get_string(ms[i], "node", src, w), false, w);
+      net.measurements.push_back(m);
+    }
+  }
+  try {
+    net.validate();
+  } catch (const std::invalid_argument& e) {
+    throw std::invalid_argument(src + ": " + e.what());
+  }
+  return net;
+}
+
+json network_to_json(const Network& net) {
+  json j;
+  j["name"] = net.name;
+  j["speed_ref_rpm"] = net.speed_ref_rpm;
+  j["operating_above_rpm"] = net.operating_above_rpm;
+  if (!std::isnan(net.sum_capacitance_J_per_K)) j["sum_capacitance_J_per_K"] = net.sum_capacitance_J_per_K;
+  j["parameters"] = json::array();
+  for (const auto& p : net.params) {
+    json pj{{"name", p.name}, {"unit", p.unit}, {"min", p.min}, {"max", p.max}, {"fixed", p.fixed}, {"log", p.log_scale}};
+    if (!std::isnan(p.nominal)) pj["nominal"] = p.nominal;
+    if (p.initial_auto) pj["initial"] = "auto"; else pj["initial"] = p.initial;
+    if (!p.description.empty()) pj["description"] = p.description;
+    j["parameters"].push_back(pj);
+  }
+  j["nodes"] = json::array();
+  for (const auto& n : net.nodes)
+    j["nodes"].push_back({{"name", n.name}, {"capacitance", net.params[static_cast<std::size_t>(n.capacitance_param)].name}});
+  auto node_name = [&](int i) { return i == kAmbient ? std::string("ambient") : net.nodes[static_cast<std::size_t>(i)].name; };
+  j["links"] = json::array();
+  for (const auto& l : net.links) {
+    json lj{{"name", l.name}, {"between", {node_name(l.a), node_name(l.b)}}};
+    if (!l.operating.empty()) lj["operating"] = terms_to_json(net, l.operating);
+    if (!l.cooling.empty()) lj["cooling"] = terms_to_json(net, l.cooling);
+    j["links"].push_back(lj);
+  }
+  j["sources"] = json::array();
+  for (const auto& s : net.sources) {
+    json sj{{"name", s.name}, {"node", node_name(s.node)}};
+    if (!s.operating.empty()) sj["operating"] = terms_to_json(net, s.operating);
+    if (!s.cooling.empty()) sj["cooling"] = terms_to_json(net, s.cooling);
+    j["sources"].push_back(sj);
+  }
+  j["measurements"] = json::array();
+  for (const auto& m : net.measurements) j["measurements"].push_back({{"column", m.column}, {"node", node_name(m.node)}});
+  return j;
+}
+
+Network load_network(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error(path + ": cannot open network file");
+  json j;
+  try {
+    j = json::parse(f);
+  } catch (const json::parse_error& e) {
+    throw std::invalid_argument(path + ": not valid JSON: " + e.what());
+  }
+  return network_from_json(j, path);
+}
+
+std::vector<std::string> preset_names() { return {"spindle4"}; }
+
+Network preset_network(const std::string& name) {
+  if (name == "spindle4") return network_from_json(json::parse(kSpindle4Json), "preset spindle4");
+  std::string known;
+  for (const auto& n : preset_names()) known += " " + n;
+  throw std::invalid_argument("unknown network preset '" + name + "' (known:" + known + ")");
+}
+
+Eigen::VectorXd default_parameters(const Network& net) {
+  Eigen::VectorXd p(net.param_count());
+  for (int i = 0; i < net.param_count(); ++i) {
+    const auto& q = net.params[static_cast<std::size_t>(i)];
+    p[i] = !std::isnan(q.nominal) ? q.nominal : (!q.initial_auto ? q.initial : std::nan(""));
+  }
+  return p;
+}
+
+NodeMatrices assemble(const Network& net, const Eigen::VectorXd& p, double speed_rpm) {
+  const int n = net.node_count();
+  const int ns = static_cast<int>(net.sources.size());
+  const Mode mode = net.mode_at(speed_rpm);
+  const double s = speed_rpm / net.speed_ref_rpm;
+  NodeMatrices m;
+  m.capacitance.resize(n);
+  for (int i = 0; i < n; ++i) m.capacitance[i] = p[net.nodes[static_cast<std::size_t>(i)].capacitance_param];
+  m.G = Eigen::MatrixXd::Zero(n, n);
+  m.ambient_conductance = Eigen::VectorXd::Zero(n);
+  for (const auto& l : net.links) {
+    double g = 0.0;
+    for (const auto& t : mode == Mode::Operating ? l.operating : l.cooling) {
+      const double v = term_value(t, p, s);
+      g += t.kind == TermKind::Resistance ? 1.0 / v : v;
+    }
+    if (g == 0.0) continue;
+    m.G(l.a, l.a) += g;
+    if (l.b == kAmbient) {
+      m.ambient_conductance[l.a] += g;
+    } else {
+      m.G(l.b, l.b) += g;
+      m.G(l.a, l.b) -= g;
+      m.G(l.b, l.a) -= g;
+    }
+  }
+  m.source_to_node = Eigen::MatrixXd::Zero(n, ns);
+  m.source_w = Eigen::VectorXd::Zero(ns);
+  for (int k = 0; k < ns; ++k) {
+    const auto& src = net.sources[static_cast<std::size_t>(k)];
+    m.source_to_node(src.node, k) = 1.0;
+    double q = 0.0;
+    for (const auto& t : mode == Mode::Operating ? src.operating : src.cooling) q += term_value(t, p, s);
+    m.source_w[k] = q;
+  }
+  m.heat_w = m.source_to_node * m.source_w;
+  return m;
+}
+
+}  // namespace btsm::thermal

@@ -1,0 +1,251 @@
+// Recording CSV reader/writer. Errors name file, line and column because recordings are edited by
+// hand and produced by several tools.
+#include "recording.hpp"
+
+#include <charconv>
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <sstream>
+#include <stdexcept>
+
+namespace btsm::thermal {
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+
+[[noreturn]] void fail(const std::string& src, std::size_t line, std::size_t col, const std::string& what) {
+  std::ostringstream os;
+  os << src << ":" << line;
+  if (col > 0) os << ":" << col;
+  os << ": " << what;
+  throw std::runtime_error(os.str());
+}
+
+std::string trim(const std::string& s) {
+  std::size_t a = 0, b = s.size();
+  while (a < b && (s[a] == ' ' || s[a] == '\t' || s[a] == '\r')) ++a;
+  while (b > a && (s[b - 1] == ' ' || s[b - 1] == '\t' || s[b - 1] == '\r')) --b;
+  return s.substr(a, b - a);
+}
+
+std::vector<std::string> split_cells(const std::string& line) {
+  std::vector<std::string> cells;
+  std::string cur;
+  for (char c : line) {
+    if (c == ',') {
+      cells.push_back(trim(cur));
+      cur.clear();
+    } else {
+      cur += c;
+    }
+  }
+  cells.push_back(trim(cur));
+  return cells;
+}
+
+// Parses a finite number or throws with position. Empty -> NaN only if allow_empty.
+double parse_number(const std::string& cell, bool allow_empty, const std::string& src, std::size_t line,
+                    std::size_t col, const std::string& column_name) {
+  if (cell.empty()) {
+    if (allow_empty) return kNaN;
+    fail(src, line, col, "column '" + column_name + "' is empty (a value is required)");
+  }
+  double v = 0.0;
+  const char* first = cell.data();
+  const char* last = cell.data() + cell.size();
+  if (*first == '+') ++first;  // from_chars rejects a leading '+'
+  auto [ptr, ec] = std::from_chars(first, last, v);
+  if (ec != std::errc() || ptr != last)
+    fail(src, line, col, "column '" + column_name + "': bad number '" + cell + "'");
+  if (!std::isfinite(v)) fail(src, line, col, "column '" + column_name + "': non-finite value '" + cell + "'");
+  return v;
+}
+
+std::string format_number(double v, int decimals) {
+  if (std::isnan(v)) return "";
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.*f", decimals, v);
+  return buf;
+}
+
+std::string format_compact(double v) {
+  char buf[64];
+  std::snprintf(buf, sizeof buf, "%.10g", v);
+  return buf;
+}
+
+}  // namespace
+
+int Recording::channel_index(const std::string& name) const {
+  for (std::size_t i = 0; i < channels.size(); ++i)
+    if (channels[i] == name) return static_cast<int>(i);
+  return -1;
+}
+
+std::string Recording::meta_value(const std::string& key) const {
+  for (const auto& kv : meta)
+    if (kv.first == key) return kv.second;
+  return "";
+}
+
+Recording parse_recording_csv(const std::string& text, const std::string& source) {
+  Recording rec;
+  rec.source = source;
+  std::istringstream in(text);
+  std::string raw;
+  std::size_t line_no = 0;
+  bool have_header = false;
+  std::vector<std::vector<double>> temps;
+  while (std::getline(in, raw)) {
+    ++line_no;
+    const std::string line = trim(raw);
+    if (line.empty()) continue;
+    if (line[0] == '#') {
+      const std::string body = trim(line.substr(1));
+      const auto colon = body.find(':');
+      if (colon == std::string::npos)
+        rec.meta.emplace_back(body, "");
+      else
+        rec.meta.emplace_back(trim(body.substr(0, colon)), trim(body.substr(colon + 1)));
+      continue;
+    }
+    auto cells = split_cells(line);
+    if (!have_header) {
+      static const char* kFixed[3] = {"time_s", "speed_rpm", "ambient_c"};
+      for (std::size_t c = 0; c < 3; ++c) {
+        if (c >= cells.size() || cells[c] != kFixed[c])
+          fail(source, line_no, c + 1,
+               std::string("header: expected column '") + kFixed[c] + "' here, found '" +
+                   (c < cells.size() ? cells[c] : std::string("<nothing>")) +
+                   "' (header must start time_s,speed_rpm,ambient_c)");
+      }
+      if (cells.size() < 4) fail(source, line_no, 4, "header: no temperature column after ambient_c");
+      for (std::size_t c = 3; c < cells.size(); ++c) {
+        if (cells[c].empty()) fail(source, line_no, c + 1, "header: empty column name");
+        for (std::size_t d = 3; d < c; ++d)
+          if (cells[d] == cells[c]) fail(source, line_no, c + 1, "header: duplicate column '" + cells[c] + "'");
+        rec.channels.push_back(cells[c]);
+      }
+      have_header = true;
+      continue;
+    }
+    const std::size_t ncol = 3 + rec.channels.size();
+    if (cells.size() != ncol) {
+      std::ostringstream os;
+      os << "expected " << ncol << " cells, found " << cells.size();
+      if (cells.size() < ncol) os << " (missing column '" << (cells.size() >= 3 ? rec.channels[cells.size() - 3] : "ambient_c") << "')";
+      fail(source, line_no, std::min(cells.size(), ncol) + (cells.size() < ncol ? 1 : 1), os.str());
+    }
+    const double t = parse_number(cells[0], false, source, line_no, 1, "time_s");
+    if (!rec.time_s.empty() && !(t > rec.time_s.back()))
+      fail(source, line_no, 1, "column 'time_s': time does not increase (" + cells[0] + " after " +
+                                   format_compact(rec.time_s.back()) + ")");
+    const double w = parse_number(cells[1], false, source, line_no, 2, "speed_rpm");
+    if (w < 0) fail(source, line_no, 2, "column 'speed_rpm': negative speed '" + cells[1] + "'");
+    const double amb = parse_number(cells[2], false, source, line_no, 3, "ambient_c");
+    rec.time_s.push_back(t);
+    rec.speed_rpm.push_back(w);
+    rec.ambient_c.push_back(amb);
+    std::vector<double> row(rec.channels.size());
+    for (std::size_t c = 0; c < rec.channels.size(); ++c)
+      row[c] = parse_number(cells[3 + c], true, source, line_no, 4 + c, rec.channels[c]);
+    temps.push_back(std::move(row));
+  }
+  if (!have_header) fail(source, line_no, 0, "no header line 'time_s,speed_rpm,ambient_c,...' found");
+  if (temps.empty()) fail(source, line_no, 0, "no data rows");
+  rec.temp_c.resize(static_cast<Eigen::Index>(temps.size()), static_cast<Eigen::Index>(rec.channels.size()));
+  for (std::size_t r = 0; r < temps.size(); ++r)
+    for (std::size_t c = 0; c < rec.channels.size(); ++c)
+      rec.temp_c(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = temps[r][c];
+  return rec;
+}
+
+Recording read_recording_csv(const std::string& path) {
+  std::ifstream f(path, std::ios::binary);
+  if (!f) throw std::runtime_error(path + ": cannot open recording");
+  std::ostringstream ss;
+  ss << f.rdbuf();
+  return parse_recording_csv(ss.str(), path);
+}
+
+void write_recording_csv(const std::string& path, const Recording& rec, int temp_decimals) {
+  RecordingWriter w;
+  w.open(path, rec.channels, temp_decimals);
+  for (const auto& kv : rec.meta) w.write_meta(kv.first, kv.second);
+  std::vector<double> row(rec.channels.size());
+  for (std::size_t r = 0; r < rec.rows(); ++r) {
+    for (std::size_t c = 0; c < row.size(); ++c)
+      row[c] = rec.temp_c(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c));
+    w.append(rec.time_s[r], rec.speed_rpm[r], rec.ambient_c[r], row);
+  }
+  w.close();
+}
+
+RecordingWriter::~RecordingWriter() {
+  if (file_) std::fclose(file_);
+}
+
+void RecordingWriter::open(const std::string& path, const std::vector<std::string>& channels, int temp_decimals) {
+  close();
+  if (channels.empty()) throw std::invalid_argument(path + ": a recording needs at least one temperature channel");
+  for (const auto& c : channels)
+    if (c.empty() || c.find(',') != std::string::npos || c.find('\n') != std::string::npos)
+      throw std::invalid_argument(path + ": bad channel name '" + c + "'");
+  file_ = std::fopen(path.c_str(), "w");
+  if (!file_) throw std::runtime_error(path + ": cannot create recording");
+  path_ = path;
+  channels_ = channels;
+  decimals_ = temp_decimals;
+  header_written_ = false;
+  rows_ = 0;
+}
+
+void RecordingWriter::write_meta(const std::string& key, const std::string& value) {
+  if (!file_) throw std::logic_error("RecordingWriter: not open");
+  if (header_written_) throw std::logic_error(path_ + ": metadata must come before the first row");
+  if (key.find('\n') != std::string::npos || value.find('\n') != std::string::npos || key.find(':') != std::string::npos)
+    throw std::invalid_argument(path_ + ": metadata key/value must be one line and the key must not contain ':'");
+  std::fprintf(file_, "# %s: %s\n", key.c_str(), value.c_str());
+}
+
+void RecordingWriter::write_header_once() {
+  if (header_written_) return;
+  std::fputs("time_s,speed_rpm,ambient_c", file_);
+  for (const auto& c : channels_) std::fprintf(file_, ",%s", c.c_str());
+  std::fputc('\n', file_);
+  header_written_ = true;
+}
+
+void RecordingWriter::append(double time_s, double speed_rpm, double ambient_c, const std::vector<double>& temps_c) {
+  if (!file_) throw std::logic_error("RecordingWriter: not open");
+  if (temps_c.size() != channels_.size())
+    throw std::invalid_argument(path_ + ": row has " + std::to_string(temps_c.size()) + " temperatures, expected " +
+                                std::to_string(channels_.size()));
+  if (!std::isfinite(time_s) || !std::isfinite(speed_rpm) || !std::isfinite(ambient_c))
+    throw std::invalid_argument(path_ + ": time, speed and ambient must be finite");
+  write_header_once();
+  std::string line = format_compact(time_s) + "," + format_compact(speed_rpm) + "," + format_number(ambient_c, 3);
+  for (double t : temps_c) {
+    line += ',';
+    if (std::isfinite(t)) line += format_number(t, decimals_);
+  }
+  line += '\n';
+  if (std::fputs(line.c_str(), file_) < 0) throw std::runtime_error(path_ + ": write failed");
+  ++rows_;
+}
+
+void RecordingWriter::flush() {
+  if (!file_) return;
+  write_header_once();
+  std::fflush(file_);
+}
+
+void RecordingWriter::close() {
+  if (!file_) return;
+  write_header_once();
+  std::fclose(file_);
+  file_ = nullptr;
+}
+
+}  // namespace btsm::thermal

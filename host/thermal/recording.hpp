@@ -1,0 +1,74 @@
+#pragma once
+// Recording CSV: the one file format every area reads and writes.
+//
+//   # key: value                     (metadata lines, anywhere before the header)
+//   time_s,speed_rpm,ambient_c,T1,...,Tn
+//   0,6021,25.00,24.9910,24.9982,25.0038,
+//
+// One row per sample. speed_rpm on row k is the speed held over [t_k, t_k+1) (zero-order hold);
+// the temperatures on row k are the state at t_k, in degC; an empty cell is a missing value
+// (stored as NaN). ambient_c is the boundary temperature of the network, a time series.
+#include <Eigen/Core>
+
+#include <cstdio>
+#include <string>
+#include <utility>
+#include <vector>
+
+namespace btsm::thermal {
+
+struct Recording {
+  std::string source;                  // file name (or any label) used in error messages
+  std::vector<std::string> channels;   // temperature column names after ambient_c (e.g. T1..T4)
+  std::vector<double> time_s, speed_rpm, ambient_c;
+  Eigen::MatrixXd temp_c;              // rows x channels, degC, NaN = missing
+  std::vector<std::pair<std::string, std::string>> meta;  // "# key: value" lines, in order
+
+  std::size_t rows() const { return time_s.size(); }
+  // Index of a channel by name, or -1.
+  int channel_index(const std::string& name) const;
+  // Value of a metadata key, or "" if absent.
+  std::string meta_value(const std::string& key) const;
+};
+
+// Reads a recording. Throws std::runtime_error("<file>:<line>:<column>: <problem>") on a missing
+// or misplaced mandatory column, a bad or non-finite number, a wrong cell count, non-increasing
+// time, or an empty file. Empty temperature cells are missing values; time, speed and ambient must
+// be present on every row.
+Recording read_recording_csv(const std::string& path);
+// Same, from text already in memory (`source` names it in errors).
+Recording parse_recording_csv(const std::string& text, const std::string& source);
+
+// Writes metadata, header and rows (temperatures with 4 decimals, NaN as an empty cell).
+void write_recording_csv(const std::string& path, const Recording& rec, int temp_decimals = 4);
+
+// Live recording: metadata first, then the header (on the first row or on flush), then rows.
+class RecordingWriter {
+ public:
+  RecordingWriter() = default;
+  ~RecordingWriter();
+  RecordingWriter(const RecordingWriter&) = delete;
+  RecordingWriter& operator=(const RecordingWriter&) = delete;
+
+  // Opens (truncates) `path` for the given temperature channel names. Throws on failure.
+  void open(const std::string& path, const std::vector<std::string>& channels, int temp_decimals = 4);
+  bool is_open() const { return file_ != nullptr; }
+  // "# key: value"; only before the first row (throws std::logic_error afterwards).
+  void write_meta(const std::string& key, const std::string& value);
+  // One sample; temps.size() must equal the channel count; NaN = missing.
+  void append(double time_s, double speed_rpm, double ambient_c, const std::vector<double>& temps_c);
+  void flush();
+  void close();
+  std::size_t rows_written() const { return rows_; }
+
+ private:
+  void write_header_once();
+  std::FILE* file_ = nullptr;
+  std::string path_;
+  std::vector<std::string> channels_;
+  int decimals_ = 4;
+  bool header_written_ = false;
+  std::size_t rows_ = 0;
+};
+
+}  // namespace btsm::thermal
