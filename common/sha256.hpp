@@ -108,7 +108,24 @@ class Sha256 {
   }
 
  private:
+#if defined(__AVR__)
+  // The AVR has no barrel shifter: an inlined rotate by a constant expands to dozens of
+  // instructions, 24 times per round. One out-of-line routine (whole bytes moved first) roughly
+  // halves compress()'s flash size; the speed cost is irrelevant for a few blocks per upload.
+  static uint32_t __attribute__((noinline)) rotr(uint32_t x, uint8_t n) {
+    while (n >= 8) {
+      x = (x >> 8) | (x << 24);
+      n = static_cast<uint8_t>(n - 8);
+    }
+    while (n != 0) {
+      x = (x >> 1) | (x << 31);
+      --n;
+    }
+    return x;
+  }
+#else
   static uint32_t rotr(uint32_t x, uint8_t n) { return (x >> n) | (x << (32 - n)); }
+#endif
   static uint32_t get_be32(const uint8_t* p) {
     return (static_cast<uint32_t>(p[0]) << 24) | (static_cast<uint32_t>(p[1]) << 16) |
            (static_cast<uint32_t>(p[2]) << 8) | static_cast<uint32_t>(p[3]);
@@ -120,43 +137,41 @@ class Sha256 {
     p[3] = static_cast<uint8_t>(v);
   }
 
+  // rotr(x,a) ^ rotr(x,b) ^ rotr(x,c): the four Sigma/sigma functions share this shape.
+  static uint32_t rot3(uint32_t x, uint8_t a, uint8_t b, uint8_t c) {
+    return rotr(x, a) ^ rotr(x, b) ^ rotr(x, c);
+  }
+
+  // Working variables live in an array (v[0] = a ... v[7] = h) and shift down each round. On AVR
+  // that keeps register pressure and code size low (32-bit ops cost 4 instructions each); on the
+  // host the compiler unrolls the shift into register renames.
   void compress() {
     uint32_t w[16];  // rolling schedule: w[t & 15] holds W_t
     for (uint8_t t = 0; t < 16; ++t) w[t] = get_be32(block_ + 4 * t);
-    uint32_t a = h_[0], b = h_[1], c = h_[2], d = h_[3];
-    uint32_t e = h_[4], f = h_[5], g = h_[6], h = h_[7];
+    uint32_t v[8];
+    for (uint8_t i = 0; i < 8; ++i) v[i] = h_[i];
     for (uint8_t t = 0; t < 64; ++t) {
       if (t >= 16) {
         const uint32_t w15 = w[(t - 15) & 15];
         const uint32_t w2 = w[(t - 2) & 15];
+        // sigma0 = rotr7 ^ rotr18 ^ shr3, sigma1 = rotr17 ^ rotr19 ^ shr10
         const uint32_t s0 = rotr(w15, 7) ^ rotr(w15, 18) ^ (w15 >> 3);
         const uint32_t s1 = rotr(w2, 17) ^ rotr(w2, 19) ^ (w2 >> 10);
         w[t & 15] += s0 + w[(t - 7) & 15] + s1;
       }
-      const uint32_t big_s1 = rotr(e, 6) ^ rotr(e, 11) ^ rotr(e, 25);
-      const uint32_t ch = (e & f) ^ (~e & g);
-      const uint32_t t1 = h + big_s1 + ch + sha256_round_constant(t) + w[t & 15];
-      const uint32_t big_s0 = rotr(a, 2) ^ rotr(a, 13) ^ rotr(a, 22);
-      const uint32_t maj = (a & b) ^ (a & c) ^ (b & c);
-      const uint32_t t2 = big_s0 + maj;
-      h = g;
-      g = f;
-      f = e;
-      e = d + t1;
-      d = c;
-      c = b;
-      b = a;
-      a = t1 + t2;
+      const uint32_t e = v[4];
+      const uint32_t ch = (e & v[5]) ^ (~e & v[6]);
+      const uint32_t t1 = v[7] + rot3(e, 6, 11, 25) + ch + sha256_round_constant(t) + w[t & 15];
+      const uint32_t a = v[0];
+      const uint32_t maj = (a & v[1]) ^ (a & v[2]) ^ (v[1] & v[2]);
+      const uint32_t t2 = rot3(a, 2, 13, 22) + maj;
+      for (uint8_t i = 7; i > 0; --i) v[i] = v[i - 1];
+      v[4] += t1;
+      v[0] = t1 + t2;
     }
-    h_[0] += a;
-    h_[1] += b;
-    h_[2] += c;
-    h_[3] += d;
-    h_[4] += e;
-    h_[5] += f;
-    h_[6] += g;
-    h_[7] += h;
+    for (uint8_t i = 0; i < 8; ++i) h_[i] += v[i];
     secure_zero(w, sizeof(w));
+    secure_zero(v, sizeof(v));
   }
 
   uint32_t h_[8];

@@ -230,24 +230,32 @@ struct ConfigRange {
   int32_t default_value;
 };
 
+namespace detail {
+inline bool set_range(ConfigRange& r, int32_t min, int32_t max, int32_t default_value) {
+  r.min = min;
+  r.max = max;
+  r.default_value = default_value;
+  return true;
+}
+}  // namespace detail
+
 // Valid range and default of a key; false for unknown keys. Per-channel role defaults follow
-// default_channel_role().
+// default_channel_role(). (Field-wise assignment, not aggregate copies: on AVR those would put a
+// constant table into .data, i.e. RAM.)
 inline bool config_key_range(uint8_t key, ConfigRange& r) {
   if (key >= kChannelRoleKeyFirst && key <= kChannelRoleKeyLast) {
-    r.min = 0;
-    r.max = kChannelRoleCount - 1;
-    r.default_value =
-        static_cast<int32_t>(default_channel_role(static_cast<uint8_t>(key - kChannelRoleKeyFirst)));
-    return true;
+    return detail::set_range(
+        r, 0, kChannelRoleCount - 1,
+        static_cast<int32_t>(default_channel_role(static_cast<uint8_t>(key - kChannelRoleKeyFirst))));
   }
   switch (static_cast<ConfigKey>(key)) {
-    case ConfigKey::SamplePeriodMs: r = {1000L, 600000L, 5000L}; return true;
-    case ConfigKey::TachPulsesPerRev: r = {1L, 64L, 1L}; return true;
-    case ConfigKey::RrefMilliohm: r = {1000000L, 20000000L, 6800000L}; return true;
-    case ConfigKey::AdcUpdateRateCode: r = {1L, 15L, 10L}; return true;
-    case ConfigKey::KalmanProcessNoise: r = {0L, 100000000L, 400L}; return true;
-    case ConfigKey::KalmanMeasurementNoise: r = {1L, 100000000L, 2500L}; return true;
-    case ConfigKey::AlarmLatch: r = {0L, 1L, 1L}; return true;
+    case ConfigKey::SamplePeriodMs: return detail::set_range(r, 1000L, 600000L, 5000L);
+    case ConfigKey::TachPulsesPerRev: return detail::set_range(r, 1L, 64L, 1L);
+    case ConfigKey::RrefMilliohm: return detail::set_range(r, 1000000L, 20000000L, 6800000L);
+    case ConfigKey::AdcUpdateRateCode: return detail::set_range(r, 1L, 15L, 10L);
+    case ConfigKey::KalmanProcessNoise: return detail::set_range(r, 0L, 100000000L, 400L);
+    case ConfigKey::KalmanMeasurementNoise: return detail::set_range(r, 1L, 100000000L, 2500L);
+    case ConfigKey::AlarmLatch: return detail::set_range(r, 0L, 1L, 1L);
     case ConfigKey::ChannelRole0: break;  // handled above
   }
   return false;

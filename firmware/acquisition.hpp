@@ -16,6 +16,7 @@
 
 #include <stdint.h>
 
+#include "common/ratiometric.hpp"
 #include "common/wire_messages.hpp"
 #include "firmware/ad7794.hpp"
 
@@ -64,8 +65,13 @@ class Acquisition {
   }
 
   // New settings take effect with a full re-initialisation (reset + calibration).
+  // A sweep in progress is restarted after the re-initialisation.
   void configure(const AcquisitionSetup& s) {
     setup_ = s;
+    if (state_ == kConvStart || state_ == kConvWait || state_ == kBurnWait) {
+      adc_.finish();
+      sweep_requested_ = true;
+    }
     state_ = kStart;
   }
   const AcquisitionSetup& setup() const { return setup_; }
@@ -284,9 +290,27 @@ class Acquisition {
       faults |= code == 0 ? wire::kFaultShort : wire::kFaultOpen;
     }
     if (chip_ == AdcChip::kAd7795) code <<= 8;
-    const float gain = static_cast<float>(ad7794::gain_of_code(setup_.gain_code));
-    r.r_ohm = setup_.r_ref_ohm * (static_cast<float>(code) / (16777216.0f * gain));
-    if (faults == 0 && r.r_ohm < kShortBelowOhm) faults |= wire::kFaultShort;
+    // The AD7794 applied its own offset/full-scale calibration: identity software calibration.
+    RatiometricConfig<float> cfg;
+    cfg.r_ref_ohm = setup_.r_ref_ohm;
+    cfg.gain = ad7794::gain_of_code(setup_.gain_code);
+    cfg.bipolar = false;
+    cfg.rail_margin_codes = 16;
+    const RatioResult<float> rr =
+        code_to_resistance<float>(code, (status & ad7794::kStatusErr) != 0, cfg, ChannelCalibration<float>());
+    r.r_ohm = rr.r_ohm;
+    if (faults == 0) {
+      switch (rr.status) {
+        case RatioStatus::kOk:
+          if (rr.r_ohm < kShortBelowOhm) faults |= wire::kFaultShort;
+          break;
+        case RatioStatus::kRailLow:
+        case RatioStatus::kNegative: faults |= wire::kFaultShort; break;
+        case RatioStatus::kRailHigh:
+        case RatioStatus::kBeyondGainRange: faults |= wire::kFaultOpen; break;
+        default: faults |= wire::kFaultAdc; break;
+      }
+    }
     r.faults = faults;
   }
 

@@ -154,6 +154,8 @@ class ModelStore {
     if (!check.ok()) {
       detail = check.detail();
       reload_active(model);
+      // The wire's BLOB_VERSION covers "magic/version not understood".
+      if (check.status == ModelStatus::kBadMagic) return Nack::BlobVersion;
       switch (model_status_class(check.status)) {
         case ModelStatusClass::kCrc: return Nack::BlobCrc;
         case ModelStatusClass::kVersion: return Nack::BlobVersion;

@@ -34,6 +34,7 @@
 // board.power:
 //   void idle();                      // sleep until the next interrupt (>= 1 per ms tick)
 //   void reboot();                    // software reset (does not return on hardware)
+//   uint8_t reset_flags();            // MCUSR bits of the last reset (PORF 1, EXTRF 2, BORF 4, WDRF 8)
 // board.tach -- spindle tachometer pulse input:
 //   void     set_pulses_per_rev(uint8_t n);   // 1..255
 //   uint16_t rpm();                   // 0 when no pulse for > 2 s (spindle stopped)
@@ -73,6 +74,7 @@ BTSM_HAL_REQUIRE(WatchdogCause, bool, BTSM_BOARD.watchdog.caused_last_reset())
 
 BTSM_HAL_REQUIRE(PowerIdle, void, BTSM_BOARD.power.idle())
 BTSM_HAL_REQUIRE(PowerReboot, void, BTSM_BOARD.power.reboot())
+BTSM_HAL_REQUIRE(PowerResetFlags, uint8_t, BTSM_BOARD.power.reset_flags())
 
 BTSM_HAL_REQUIRE(TachPulses, void, BTSM_BOARD.tach.set_pulses_per_rev(uint8_t(1)))
 BTSM_HAL_REQUIRE(TachRpm, uint16_t, BTSM_BOARD.tach.rpm())
@@ -103,6 +105,7 @@ struct CheckBoard {
   static_assert(contract::WatchdogCause<Board>::value, "Board::watchdog.caused_last_reset() -> bool missing");
   static_assert(contract::PowerIdle<Board>::value, "Board::power.idle() -> void missing");
   static_assert(contract::PowerReboot<Board>::value, "Board::power.reboot() -> void missing");
+  static_assert(contract::PowerResetFlags<Board>::value, "Board::power.reset_flags() -> uint8_t missing");
   static_assert(contract::TachPulses<Board>::value, "Board::tach.set_pulses_per_rev(uint8_t) -> void missing");
   static_assert(contract::TachRpm<Board>::value, "Board::tach.rpm() -> uint16_t missing");
   static_assert(contract::IdentityKey<Board>::value,

@@ -98,6 +98,7 @@ void NativeBoard::Watchdog::enable() {
 
 void NativeBoard::mcu_reset() {
   last_reset_by_watchdog_ = reset_pending_ == ResetCause::kWatchdog;
+  first_boot_ = reset_pending_ == ResetCause::kPowerLoss;
   if (reset_pending_ == ResetCause::kPowerLoss) adc_.power_on_reset();
   reset_pending_ = ResetCause::kNone;
   powered_ = true;

@@ -90,6 +90,7 @@ class NativeBoard {
     NativeBoard* b;
     void idle() { ++b->idle_calls_; }
     void reboot() { b->reset_pending_ = ResetCause::kSoftware; }
+    uint8_t reset_flags() { return b->last_reset_by_watchdog_ ? 0x08 : (b->first_boot_ ? 0x01 : 0x00); }
   };
   struct Tach {
     NativeBoard* b;
@@ -196,6 +197,7 @@ class NativeBoard {
   bool watchdog_enabled_ = false;
   uint64_t last_kick_us_ = 0;
   bool last_reset_by_watchdog_ = false;
+  bool first_boot_ = true;
   uint64_t watchdog_resets_ = 0;
   ResetCause reset_pending_ = ResetCause::kNone;
 

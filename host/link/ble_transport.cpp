@@ -108,7 +108,7 @@ int connect_le_att(const BleAddress& addr, Millis timeout) {
   src.l2_family = AF_BLUETOOTH;
   src.l2_cid = htobs(att::kAttCid);
   src.l2_bdaddr_type = BDADDR_LE_PUBLIC;
-  bacpy(&src.l2_bdaddr, BDADDR_ANY);
+  // l2_bdaddr stays all-zero = BDADDR_ANY (the macro is a C compound literal).
   if (::bind(fd, reinterpret_cast<sockaddr*>(&src), sizeof src) != 0) throw fail(errno, "bind ATT channel");
   bt_security sec{};
   sec.level = BT_SECURITY_LOW;

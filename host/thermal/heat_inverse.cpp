@@ -5,7 +5,10 @@
 
 #include "host/thermal/simulator.hpp"
 
+#include <nlohmann/json.hpp>
+
 #include <algorithm>
+#include <fstream>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -361,6 +364,58 @@ double estimate_noise_sigma(const Eigen::MatrixXd& measured) {
   if (per_channel.empty()) throw std::invalid_argument("cannot estimate the noise level: no channel with 10 consecutive samples (give it explicitly)");
   std::sort(per_channel.begin(), per_channel.end());
   return per_channel[per_channel.size() / 2];
+}
+
+ModelWithParameters load_model_with_parameters(const std::string& path_or_preset) {
+  ModelWithParameters m;
+  m.source = path_or_preset;
+  std::ifstream f(path_or_preset);
+  if (!f) {
+    const std::vector<std::string> presets = preset_names();
+    if (std::find(presets.begin(), presets.end(), path_or_preset) == presets.end())
+      throw std::invalid_argument("model '" + path_or_preset + "' is neither a readable file nor a preset name");
+    m.network = preset_network(path_or_preset);
+    m.params = default_parameters(m.network);
+  } else {
+    nlohmann::json j;
+    try {
+      j = nlohmann::json::parse(f);
+    } catch (const nlohmann::json::exception& e) {
+      throw std::invalid_argument(path_or_preset + ": not valid JSON: " + e.what());
+    }
+    if (j.is_object() && j.contains("network")) {
+      m.network = network_from_json(j.at("network"), path_or_preset + ": network");
+      m.params = default_parameters(m.network);
+      if (j.contains("parameters")) {
+        auto set = [&](const std::string& name, const nlohmann::json& v) {
+          const int i = m.network.param_index(name);
+          if (i < 0) throw std::invalid_argument(path_or_preset + ": parameters: '" + name + "' is not a parameter of the network");
+          if (!v.is_number()) throw std::invalid_argument(path_or_preset + ": parameters: '" + name + "' is not a number");
+          m.params(i) = v.get<double>();
+        };
+        const nlohmann::json& ps = j.at("parameters");
+        if (ps.is_object()) {
+          for (auto it = ps.begin(); it != ps.end(); ++it) set(it.key(), it.value());
+        } else if (ps.is_array()) {
+          for (const auto& e : ps) {
+            if (!e.is_object() || !e.contains("name") || !e.contains("value"))
+              throw std::invalid_argument(path_or_preset + ": parameters: each entry needs 'name' and 'value'");
+            set(e.at("name").get<std::string>(), e.at("value"));
+          }
+        } else {
+          throw std::invalid_argument(path_or_preset + ": 'parameters' must be an object or an array");
+        }
+      }
+    } else {
+      m.network = network_from_json(j, path_or_preset);
+      m.params = default_parameters(m.network);
+    }
+  }
+  for (int i = 0; i < m.network.param_count(); ++i)
+    if (!std::isfinite(m.params(i)))
+      throw std::invalid_argument(path_or_preset + ": parameter '" + m.network.params[i].name +
+                                  "' has no value (fit the model first and pass the fit result)");
+  return m;
 }
 
 std::vector<std::string> measured_columns(const Network& net, const Recording& rec) {

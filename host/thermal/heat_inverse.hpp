@@ -100,6 +100,18 @@ struct HeatInverseResult {
   int monte_carlo_evaluations = 0;         // number of smoother runs the Monte-Carlo search used
 };
 
+// A network with a value for every parameter.
+struct ModelWithParameters {
+  Network network;
+  Eigen::VectorXd params;
+  std::string source;   // file or preset it came from
+};
+// Loads `path_or_preset`: (1) a JSON object {"network": {...network JSON...}, "parameters": ...}
+// where parameters is {"name": value, ...} or [{"name": ..., "value": ...}, ...] (a fit result);
+// (2) a plain network JSON whose parameters all have values (initial/nominal); (3) a preset name.
+// Throws std::invalid_argument naming the file and the parameter without a value.
+ModelWithParameters load_model_with_parameters(const std::string& path_or_preset);
+
 // Builds the problem for a network and a recording: the measured channels are the network's
 // measurements whose column exists in the recording; `source_nodes` empty = the nodes carrying the
 // network's own sources. keep_model_sources = false estimates the TOTAL heat at those nodes (the

@@ -58,7 +58,15 @@ TEST(WireMessages, SampleRoundTripIncludingI24Extremes) {
     ASSERT_EQ(encode_sample(s, p), kSampleSize);
     Sample back{};
     ASSERT_TRUE(decode_sample(p, kSampleSize, back));
-    EXPECT_EQ(std::memcmp(&back, &s, sizeof s), 0);
+    EXPECT_EQ(back.sample_index, s.sample_index);
+    EXPECT_EQ(back.time_ms, s.time_ms);
+    EXPECT_EQ(back.speed_rpm, s.speed_rpm);
+    for (uint8_t c = 0; c < kChannels; ++c) {
+      EXPECT_EQ(back.temp_mK[c], s.temp_mK[c]);
+      EXPECT_EQ(back.channel_status[c], s.channel_status[c]);
+      EXPECT_EQ(back.predicted_mK[c], s.predicted_mK[c]);
+    }
+    EXPECT_EQ(back.overall, s.overall);
     expect_canonical(Bytes(p, p + kSampleSize), decode_sample, encode_sample);
   }
   EXPECT_EQ(kSampleSize, 46);
@@ -91,7 +99,24 @@ TEST(WireMessages, InfoRoundTripAndModelStateCheck) {
   ASSERT_EQ(encode_info(info, p), kInfoSize);
   Info back{};
   ASSERT_TRUE(decode_info(p, kInfoSize, back));
-  EXPECT_EQ(std::memcmp(&back, &info, sizeof info), 0);
+  // Field by field (the struct has padding, so no memcmp).
+  EXPECT_EQ(back.fw_major, 1);
+  EXPECT_EQ(back.fw_minor, 4);
+  EXPECT_EQ(back.fw_patch, 2);
+  EXPECT_EQ(back.protocol_version, kProtocolVersion);
+  EXPECT_EQ(back.device_id, 0x01020304u);
+  EXPECT_EQ(back.model_crc, 0xCBF43926u);
+  EXPECT_EQ(back.model_seq, 42u);
+  EXPECT_EQ(back.uptime_s, 3600u);
+  EXPECT_EQ(back.model_state, 1);
+  EXPECT_EQ(back.reset_cause, 0x08);
+  EXPECT_EQ(back.adc_timeouts, 65535);
+  EXPECT_EQ(back.frame_errors, 1);
+  EXPECT_EQ(back.kalman_rejects, 2);
+  EXPECT_EQ(back.sensor_faults, 3);
+  EXPECT_EQ(back.resets, 4);
+  EXPECT_EQ(back.watchdog_resets, 5);
+  expect_canonical(Bytes(p, p + kInfoSize), decode_info, encode_info);
   EXPECT_EQ(get_le32(p + 8), 0xCBF43926u);  // model_crc at its documented offset
   p[20] = kModelStateCount;
   EXPECT_FALSE(decode_info(p, kInfoSize, back));
@@ -351,14 +376,6 @@ TEST(WireMessages, ModelChunkFitKeepsEveryEncodedChunkWithinOneBleWrite) {
         ASSERT_GT(size, 0u);
         ASSERT_LE(size, kBleWriteSize) << "offset " << off;
         for (size_t i = 0; i < size; ++i) ASSERT_NE(wire[i], kAtModeChar);
-        // Maximal: one more byte would not fit (unless the blob ended).
-        if (off + n < blob.size() && n < kBleWriteSize - 10) {
-          c.len = static_cast<uint8_t>(n + 1);
-          std::memcpy(c.data, blob.data() + off, n + 1u);
-          ASSERT_GT(encode_message_frame(MsgType::ModelChunk, seq, c, encode_model_chunk, wire,
-                                         sizeof wire),
-                    kBleWriteSize);
-        }
         FrameDecoder d;
         for (size_t i = 0; i < size; ++i) {
           if (d.push(wire[i])) {
@@ -366,6 +383,14 @@ TEST(WireMessages, ModelChunkFitKeepsEveryEncodedChunkWithinOneBleWrite) {
             ASSERT_TRUE(decode_model_chunk(d.payload(), d.payload_len(), back));
             std::memcpy(reassembled.data() + back.offset, back.data, back.len);
           }
+        }
+        // Maximal: one more byte would not fit (unless the blob ended).
+        if (off + n < blob.size() && n < kBleWriteSize - 10) {
+          c.len = static_cast<uint8_t>(n + 1);
+          std::memcpy(c.data, blob.data() + off, n + 1u);
+          ASSERT_GT(encode_message_frame(MsgType::ModelChunk, seq, c, encode_model_chunk, wire,
+                                         sizeof wire),
+                    kBleWriteSize);
         }
         off += n;
         ++seq;

@@ -48,7 +48,7 @@ TEST(ThermalSimulator, AmbientIsABoundaryInputNotAnOffset) {
   sim.reset(Eigen::VectorXd::Constant(4, 25.0));
   sim.step(1.0, 0.0, 30.0);
   EXPECT_LT(sim.node_temp_c().maxCoeff(), 25.1);
-  for (int k = 0; k < 2000; ++k) sim.step(60.0, 0.0, 30.0);
+  for (int k = 0; k < 10000; ++k) sim.step(60.0, 0.0, 30.0);
   EXPECT_NEAR(sim.node_temp_c().minCoeff(), 30.0, 1e-6);
 }
 

@@ -1,0 +1,221 @@
+// Bluno Beetle board implementation (register level, avr-libc).
+#include "boards/bluno_beetle/board.hpp"
+
+#include <avr/interrupt.h>
+#include <avr/pgmspace.h>
+#include <avr/sleep.h>
+#include <avr/wdt.h>
+#include <util/atomic.h>
+
+#include "firmware/device_key.hpp"
+#include "hal/contracts.hpp"
+
+static_assert(btsm::hal::CheckBoard<btsm::bluno::Board>::value, "Bluno board must satisfy the HAL contract");
+static_assert(sizeof(double) == 4, "avr-g++: double is 32-bit; the firmware must not rely on more");
+
+// The per-device key record (firmware/device_key.hpp), linked at device_key::kFlashAddress by
+// --section-start=.btsm_key. Erased (no key) unless the image is built with BTSM_DEV_KEY.
+extern "C" const uint8_t btsm_device_key_record[btsm::device_key::kRecordSize]
+    __attribute__((used, section(".btsm_key"))) = {
+#if defined(BTSM_DEV_KEY)
+        // magic "BTK1", device id 0x0000DE70, key 00..1F, CRC-32 over bytes 0..39 (little-endian).
+        0x42, 0x54, 0x4B, 0x31, 0x70, 0xDE, 0x00, 0x00, 0x00, 0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07,
+        0x08, 0x09, 0x0A, 0x0B, 0x0C, 0x0D, 0x0E, 0x0F, 0x10, 0x11, 0x12, 0x13, 0x14, 0x15, 0x16, 0x17,
+        0x18, 0x19, 0x1A, 0x1B, 0x1C, 0x1D, 0x1E, 0x1F, 0x4A, 0x46, 0xFE, 0x8E,
+        0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+        0xFF, 0xFF, 0xFF,
+#else
+        0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+        0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+        0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+        0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF, 0xFF,
+#endif
+};
+
+namespace {
+
+volatile uint8_t rx_buf[btsm::bluno::kRxBufferBytes];
+volatile uint8_t tx_buf[btsm::bluno::kTxBufferBytes];
+volatile uint8_t rx_head, rx_tail;  // head: written by ISR
+volatile uint8_t tx_head, tx_tail;  // tail: read by ISR
+volatile uint32_t ms_ticks;
+volatile uint16_t timer1_high;      // Timer1 overflow count: 32-bit time base of 4 us ticks
+volatile uint32_t tach_period_ticks;
+volatile uint32_t tach_last_ticks;
+volatile bool tach_seen;
+uint8_t tach_ppr = 1;
+uint8_t saved_mcusr;
+
+uint32_t timer1_now() {
+  // Caller has interrupts disabled.
+  uint16_t high = timer1_high;
+  const uint16_t low = TCNT1;
+  if ((TIFR1 & (1 << TOV1)) && low < 0x8000) ++high;  // overflow pending, not yet counted
+  return (static_cast<uint32_t>(high) << 16) | low;
+}
+
+}  // namespace
+
+// Runs before main and before any constructor: keep the reset cause, stop a watchdog that is
+// still armed after a watchdog reset (it stays enabled with its shortest period otherwise).
+extern "C" void btsm_early_init(void) __attribute__((naked, used, section(".init3")));
+extern "C" void btsm_early_init(void) {
+  saved_mcusr = MCUSR;
+  MCUSR = 0;
+  wdt_disable();
+}
+
+ISR(USART_RX_vect) {
+  const uint8_t b = UDR0;
+  const uint8_t next = static_cast<uint8_t>((rx_head + 1) % btsm::bluno::kRxBufferBytes);
+  if (next != rx_tail) {
+    rx_buf[rx_head] = b;
+    rx_head = next;
+  }
+}
+
+ISR(USART_UDRE_vect) {
+  if (tx_head == tx_tail) {
+    UCSR0B &= static_cast<uint8_t>(~(1 << UDRIE0));
+    return;
+  }
+  UDR0 = tx_buf[tx_tail];
+  tx_tail = static_cast<uint8_t>((tx_tail + 1) % btsm::bluno::kTxBufferBytes);
+}
+
+ISR(TIMER0_COMPA_vect) { ms_ticks = ms_ticks + 1; }
+
+ISR(TIMER1_OVF_vect) { timer1_high = static_cast<uint16_t>(timer1_high + 1); }
+
+ISR(INT0_vect) {
+  const uint32_t now = timer1_now();
+  if (tach_seen) tach_period_ticks = now - tach_last_ticks;
+  tach_last_ticks = now;
+  tach_seen = true;
+}
+
+namespace btsm {
+namespace bluno {
+
+bool Serial::read(uint8_t& b) {
+  if (rx_head == rx_tail) return false;
+  b = rx_buf[rx_tail];
+  rx_tail = static_cast<uint8_t>((rx_tail + 1) % kRxBufferBytes);
+  return true;
+}
+
+bool Serial::write(uint8_t b) {
+  const uint8_t next = static_cast<uint8_t>((tx_head + 1) % kTxBufferBytes);
+  if (next == tx_tail) return false;
+  tx_buf[tx_head] = b;
+  tx_head = next;
+  UCSR0B |= (1 << UDRIE0);
+  return true;
+}
+
+uint16_t Serial::tx_free() {
+  const uint8_t head = tx_head, tail = tx_tail;
+  const uint8_t used = static_cast<uint8_t>((head + kTxBufferBytes - tail) % kTxBufferBytes);
+  return static_cast<uint16_t>(kTxBufferBytes - 1 - used);
+}
+
+uint32_t Clock::millis() {
+  uint32_t t;
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { t = ms_ticks; }
+  return t;
+}
+
+void Storage::write(uint16_t addr, uint8_t value) {
+  while (EECR & (1 << EEPE)) {
+  }
+  EEAR = addr;
+  EEDR = value;
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+    EECR |= (1 << EEMPE);  // EEPE must follow within 4 cycles
+    EECR |= (1 << EEPE);
+  }
+}
+
+void Watchdog::enable() { wdt_enable(WDTO_2S); }
+void Watchdog::kick() { wdt_reset(); }
+bool Watchdog::caused_last_reset() { return (saved_mcusr & (1 << WDRF)) != 0; }
+
+void Power::idle() {
+  set_sleep_mode(SLEEP_MODE_IDLE);
+  cli();
+  sleep_enable();
+  sei();  // the instruction after sei runs before any interrupt: no lost wake-up
+  sleep_cpu();
+  sleep_disable();
+}
+
+void Power::reboot() {
+  wdt_enable(WDTO_15MS);
+  for (;;) {
+  }
+}
+
+uint8_t Power::reset_flags() { return saved_mcusr; }
+
+void Tach::set_pulses_per_rev(uint8_t n) { tach_ppr = n == 0 ? 1 : n; }
+
+uint16_t Tach::rpm() {
+  uint32_t period, last, now;
+  bool seen;
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) {
+    period = tach_period_ticks;
+    last = tach_last_ticks;
+    seen = tach_seen;
+    now = timer1_now();
+  }
+  // No pulse for 2 s (500000 ticks of 4 us): stopped.
+  if (!seen || period == 0 || now - last > 500000UL) return 0;
+  // rpm = 60 s / (period * 4 us * pulses per rev) = 15e6 / (period * ppr)
+  const uint32_t denom = period * tach_ppr;
+  const uint32_t rpm = (15000000UL + denom / 2) / denom;
+  return rpm > 65534UL ? 65534U : static_cast<uint16_t>(rpm);
+}
+
+void Identity::read_key_record(uint8_t* out, uint16_t n) {
+  for (uint16_t i = 0; i < n && i < device_key::kRecordSize; ++i)
+    out[i] = pgm_read_byte(&btsm_device_key_record[i]);
+}
+
+uint16_t Identity::entropy_bits() {
+  // Timer1 low bits at the moment of a host request: jitter of the BLE link timing.
+  uint16_t t;
+  ATOMIC_BLOCK(ATOMIC_RESTORESTATE) { t = TCNT1; }
+  return static_cast<uint16_t>(t ^ (static_cast<uint16_t>(ms_ticks) << 7));
+}
+
+void Board::initialize() {
+  // SPI master, mode 3, f/16 = 1 MHz. CS high before SPI is enabled.
+  PORTB |= (1 << Pins::kAdcCs) | (1 << Pins::kMiso);  // CS idle high; pull-up on DOUT/RDY
+  DDRB |= (1 << Pins::kAdcCs) | (1 << Pins::kMosi) | (1 << Pins::kSck);
+  DDRB &= static_cast<uint8_t>(~(1 << Pins::kMiso));
+  SPCR = (1 << SPE) | (1 << MSTR) | (1 << CPOL) | (1 << CPHA) | (1 << SPR0);
+  SPSR = 0;
+  // USART0 115200 8N1 with U2X: UBRR = 16 (+2.1 %).
+  UCSR0A = (1 << U2X0);
+  UBRR0 = 16;
+  UCSR0C = (1 << UCSZ01) | (1 << UCSZ00);
+  UCSR0B = (1 << RXEN0) | (1 << TXEN0) | (1 << RXCIE0);
+  // Timer0: CTC, /64, OCR0A = 249 -> 1 kHz tick.
+  TCCR0A = (1 << WGM01);
+  TCCR0B = (1 << CS01) | (1 << CS00);
+  OCR0A = 249;
+  TIMSK0 = (1 << OCIE0A);
+  // Timer1: normal mode, /64 -> 4 us per tick, overflow extends it to 32 bits.
+  TCCR1A = 0;
+  TCCR1B = (1 << CS11) | (1 << CS10);
+  TIMSK1 = (1 << TOIE1);
+  // Tach on INT0, falling edge, pull-up.
+  DDRD &= static_cast<uint8_t>(~(1 << Pins::kTach));
+  PORTD |= (1 << Pins::kTach);
+  EICRA = (1 << ISC01);
+  EIMSK = (1 << INT0);
+  sei();
+}
+
+}  // namespace bluno
+}  // namespace btsm

@@ -1,0 +1,106 @@
+// Bluno Beetle (ATmega328P, 16 MHz) board: the hal/contracts.hpp Board contract at register level.
+//
+// Pin aliases (Arduino numbering / ATmega328P port pin):
+//   AD7794 CS        D10 / PB2   (output, idle high)
+//   AD7794 DIN       D11 / PB3   (MOSI)
+//   AD7794 DOUT/RDY  D12 / PB4   (MISO; also read as the RDY level while CS is low)
+//   AD7794 SCLK      D13 / PB5   (SCK)
+//   Tachometer       D2  / PD2   (INT0, falling edge, internal pull-up)
+//   BLE bridge UART  D0/D1 PD0/PD1 (115200 8N1, U2X, interrupt-driven ring buffers)
+// Peripherals used: SPI (mode 3, f/16 = 1 MHz), USART0, Timer0 (1 ms tick), Timer1 (free-running
+// 4 us time base for the tach period), EEPROM, watchdog (2 s), idle sleep.
+#ifndef BTSM_BOARDS_BLUNO_BEETLE_BOARD_HPP
+#define BTSM_BOARDS_BLUNO_BEETLE_BOARD_HPP
+
+#include <avr/io.h>
+#include <stdint.h>
+
+namespace btsm {
+namespace bluno {
+
+// Pin aliases: bit numbers in their port.
+struct Pins {
+  static constexpr uint8_t kAdcCs = PB2;
+  static constexpr uint8_t kMosi = PB3;
+  static constexpr uint8_t kMiso = PB4;  // = AD7794 DOUT/RDY
+  static constexpr uint8_t kSck = PB5;
+  static constexpr uint8_t kTach = PD2;  // INT0
+};
+
+static constexpr uint16_t kRxBufferBytes = 64;  // power of two
+static constexpr uint16_t kTxBufferBytes = 96;
+
+struct Spi {
+  static void select() { PORTB &= static_cast<uint8_t>(~(1 << Pins::kAdcCs)); }
+  static void deselect() { PORTB |= static_cast<uint8_t>(1 << Pins::kAdcCs); }
+  static uint8_t transfer(uint8_t mosi) {
+    SPDR = mosi;
+    while (!(SPSR & (1 << SPIF))) {
+    }
+    return SPDR;
+  }
+  static bool miso_high() { return (PINB & (1 << Pins::kMiso)) != 0; }
+};
+
+struct Serial {
+  static bool read(uint8_t& b);
+  static bool write(uint8_t b);
+  static uint16_t tx_free();
+};
+
+struct Clock {
+  static uint32_t millis();
+};
+
+struct Storage {
+  static uint16_t size() { return 1024; }
+  static uint8_t read(uint16_t addr) {
+    while (EECR & (1 << EEPE)) {
+    }
+    EEAR = addr;
+    EECR |= (1 << EERE);
+    return EEDR;
+  }
+  static bool busy() { return (EECR & (1 << EEPE)) != 0; }
+  static void write(uint16_t addr, uint8_t value);
+};
+
+struct Watchdog {
+  static void enable();
+  static void kick();
+  static bool caused_last_reset();
+};
+
+struct Power {
+  static void idle();
+  static void reboot();
+  static uint8_t reset_flags();
+};
+
+struct Tach {
+  static void set_pulses_per_rev(uint8_t n);
+  static uint16_t rpm();
+};
+
+struct Identity {
+  static void read_key_record(uint8_t* out, uint16_t n);
+  static uint16_t entropy_bits();
+};
+
+struct Board {
+  Spi spi;
+  Serial serial;
+  Clock clock;
+  Storage storage;
+  Watchdog watchdog;
+  Power power;
+  Tach tach;
+  Identity identity;
+  // Configures pins, SPI, UART, timers, the tach interrupt, and enables interrupts.
+  static void initialize();
+};
+
+}  // namespace bluno
+}  // namespace btsm
+
+#endif

@@ -1,0 +1,340 @@
+#include "boards/sim/runner/sim_module.hpp"
+
+#include "boards/sim/plant/probes.hpp"
+#include "boards/sim/runner/pty_bridge.hpp"
+#include "host/thermal/recording.hpp"
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <sstream>
+#include <stdexcept>
+
+namespace btsm::sim {
+
+using Clock = std::chrono::steady_clock;
+
+BoardKind parse_board_kind(const std::string& s) {
+  if (s == "native") return BoardKind::Native;
+  if (s == "avr") return BoardKind::Avr;
+  throw std::invalid_argument("board '" + s + "': expected native or avr");
+}
+
+struct SimModule::Pty {
+  explicit Pty(const std::string& path) : bridge(path) {}
+  PtyBridge bridge;
+};
+
+struct SimModule::Truth {
+  thermal::RecordingWriter writer;
+  size_t nodes = 0;
+};
+
+SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
+  if (!(opts_.io_chunk_s > 0.0) || opts_.io_chunk_s > 1.0)
+    throw std::invalid_argument("sim-module: io chunk must be within (0, 1] s");
+  if (opts_.time_scale < 0.0 || !std::isfinite(opts_.time_scale))
+    throw std::invalid_argument("sim-module: time scale must be >= 0 (0 = max)");
+  if (!(opts_.duration_s > 0.0)) throw std::invalid_argument("sim-module: duration must be > 0 s");
+  if (!(opts_.truth_period_s > 0.0)) throw std::invalid_argument("sim-module: truth period must be > 0 s");
+  plant_ = std::make_unique<SpindlePlant>(opts_.plant);
+  ModuleBoardOptions b;
+  b.adc = opts_.adc;
+  b.elf_path = opts_.elf_path;
+  b.eeprom_path = opts_.eeprom_path;
+  b.tach_pulses_per_rev = opts_.tach_pulses_per_rev;
+  board_ = opts_.board == BoardKind::Avr ? make_avr_board(b) : make_native_board(b);
+  if (!opts_.truth_csv.empty()) {
+    truth_ = std::make_unique<Truth>();
+    std::vector<std::string> cols{"T1", "T2", "T3", "T4", "T5"};
+    const auto& net = plant_->network();
+    truth_->nodes = size_t(net.node_count());
+    for (const auto& n : net.nodes) cols.push_back("node_" + n.name);
+    for (const auto& n : net.nodes) cols.push_back("extra_heat_W_" + n.name);
+    truth_->writer.open(opts_.truth_csv, cols, 5);
+    auto& w = truth_->writer;
+    w.write_meta("source", "btsm sim-module (simulated truth, not a measurement)");
+    w.write_meta("board", board_->kind());
+    w.write_meta("network", opts_.plant.network);
+    w.write_meta("speed_profile", opts_.plant.speed.to_string());
+    w.write_meta("channels", "T1 rear bearing, T2 housing, T3 front bearing, T4 ambient, T5 housing surface");
+    for (const auto& f : opts_.plant.faults) w.write_meta("fault", to_string(f));
+    const auto& fx = opts_.plant.effects;
+    if (fx.bearing_temp_coeff_per_k != 0.0)
+      w.write_meta("effect", "bearing-tc:" + std::to_string(fx.bearing_temp_coeff_per_k));
+    if (fx.runin_w_per_krpm != 0.0)
+      w.write_meta("effect", "run-in:" + std::to_string(fx.runin_w_per_krpm) + "W/" +
+                                 std::to_string(fx.runin_tau_s) + "s");
+    w.write_meta("columns", "T*, node_* in degC; extra_heat_W_* = heat beyond the paper's model in W");
+  }
+  if (!opts_.pty_path.empty()) pty_ = std::make_unique<Pty>(opts_.pty_path);
+  write_truth_row();
+}
+
+SimModule::~SimModule() {
+  stop();
+  try {
+    std::lock_guard<std::mutex> lk(mu_);
+    board_->save_eeprom();
+    if (truth_) truth_->writer.close();
+  } catch (const std::exception& e) {
+    log(std::string("sim-module: ") + e.what());
+  }
+}
+
+const char* SimModule::board_kind() const { return board_->kind(); }
+
+void SimModule::log(const std::string& s) const {
+  if (opts_.log) opts_.log(s);
+}
+
+void SimModule::start() {
+  if (running_) return;
+  stop_ = false;
+  running_ = true;
+  thread_ = std::thread([this] { thread_main(); });
+}
+
+void SimModule::stop() {
+  stop_ = true;
+  cv_.notify_all();
+  if (thread_.joinable()) thread_.join();
+  running_ = false;
+}
+
+void SimModule::wait() {
+  if (thread_.joinable()) thread_.join();
+  running_ = false;
+}
+
+std::string SimModule::error() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return error_;
+}
+
+void SimModule::thread_main() {
+  try {
+    auto pace_wall = Clock::now();
+    double pace_sim = sim_time_s();
+    bool waiting_logged = false;
+    while (!stop_ && sim_time_s() < opts_.duration_s - 1e-9) {
+      // Host synchronisation: do not advance while nobody listens or the host lags behind.
+      if (opts_.wait_for_host) {
+        const auto w0 = Clock::now();
+        bool waited = false;
+        for (;;) {
+          if (stop_) return;
+          if (pty_) {
+            std::unique_lock<std::mutex> lk(mu_);
+            const bool connected = pty_->bridge.host_connected();
+            if (connected) exchange_io(false);
+            if (connected && to_host_pending_.empty()) break;
+            lk.unlock();
+            if (!connected && !waiting_logged) {
+              log("sim-module: waiting for a host to open " + opts_.pty_path);
+              waiting_logged = true;
+            }
+            if (connected) pty_->bridge.wait_writable(50);
+            else std::this_thread::sleep_for(std::chrono::milliseconds(20));
+          } else {
+            std::unique_lock<std::mutex> lk(mu_);
+            if (to_host_inproc_.size() <= opts_.max_unread_bytes) break;
+            cv_.wait_for(lk, std::chrono::milliseconds(50));
+          }
+          waited = true;
+        }
+        if (waited) {
+          const double dt = std::chrono::duration<double>(Clock::now() - w0).count();
+          std::lock_guard<std::mutex> lk(mu_);
+          stats_.waited_s += dt;
+          if (waiting_logged) log("sim-module: host connected at t = " + std::to_string(board_->time_s()) + " s");
+          waiting_logged = false;
+          pace_wall = Clock::now();
+          pace_sim = board_->time_s();
+        }
+      }
+      const auto c0 = Clock::now();
+      step_chunk(true);
+      {
+        std::lock_guard<std::mutex> lk(mu_);
+        stats_.wall_time_s += std::chrono::duration<double>(Clock::now() - c0).count();
+      }
+      if (opts_.time_scale > 0.0) {
+        const double ahead = (sim_time_s() - pace_sim) / opts_.time_scale;
+        std::this_thread::sleep_until(pace_wall + std::chrono::duration_cast<Clock::duration>(
+                                                      std::chrono::duration<double>(ahead)));
+      }
+    }
+    std::lock_guard<std::mutex> lk(mu_);
+    exchange_io(false);
+    if (truth_) truth_->writer.flush();
+  } catch (const std::exception& e) {
+    std::lock_guard<std::mutex> lk(mu_);
+    error_ = e.what();
+    log(std::string("sim-module: stopped: ") + e.what());
+  }
+  running_ = false;
+}
+
+void SimModule::run_for(double sim_s) {
+  if (running_) throw std::logic_error("SimModule::run_for while the background thread runs");
+  const double end = std::min(sim_time_s() + sim_s, opts_.duration_s);
+  while (sim_time_s() < end - 1e-9) step_chunk(false, end);
+}
+
+void SimModule::step_chunk(bool may_block) { step_chunk(may_block, opts_.duration_s); }
+
+void SimModule::step_chunk(bool /*may_block*/, double limit_s) {
+  std::lock_guard<std::mutex> lk(mu_);
+  const double t = board_->time_s();
+  if (power_cycle_requested_) {
+    board_->power_cycle();
+    boot_times_.push_back(t);
+    power_cycle_requested_ = false;
+  }
+  apply_to_front_end(*plant_, board_->front_end());
+  board_->set_spindle_rpm(plant_->speed_rpm());
+  const double t_next = std::min(t + opts_.io_chunk_s, limit_s);
+  board_->run_until(t_next);
+  plant_->advance_to(t_next);
+  write_truth_row();
+  exchange_io(false);
+  stats_.sim_time_s = board_->time_s();
+}
+
+// Called with mu_ held. Moves bytes between the board and the pty / in-process queues.
+void SimModule::exchange_io(bool) {
+  std::vector<uint8_t> out;
+  board_->take_output(out);
+  if (!from_host_.empty()) {
+    board_->host_send(from_host_.data(), from_host_.size());
+    stats_.bytes_from_host += from_host_.size();
+    from_host_.clear();
+  }
+  if (pty_) {
+    uint8_t buf[512];
+    for (;;) {
+      const size_t n = pty_->bridge.read(buf, sizeof buf);
+      if (n == 0) break;
+      board_->host_send(buf, n);
+      stats_.bytes_from_host += n;
+    }
+    to_host_pending_.insert(to_host_pending_.end(), out.begin(), out.end());
+    if (!opts_.wait_for_host && !pty_->bridge.host_connected()) {
+      stats_.bytes_dropped += to_host_pending_.size();
+      to_host_pending_.clear();
+    }
+    size_t sent = 0;
+    while (sent < to_host_pending_.size()) {
+      const size_t n = pty_->bridge.write(to_host_pending_.data() + sent, to_host_pending_.size() - sent);
+      if (n == 0) break;
+      sent += n;
+    }
+    stats_.bytes_to_host += sent;
+    to_host_pending_.erase(to_host_pending_.begin(), to_host_pending_.begin() + long(sent));
+    if (!opts_.wait_for_host && !to_host_pending_.empty()) {
+      stats_.bytes_dropped += to_host_pending_.size();
+      to_host_pending_.clear();
+    }
+  } else {
+    if (!opts_.wait_for_host && to_host_inproc_.size() + out.size() > opts_.max_unread_bytes) {
+      stats_.bytes_dropped += out.size();
+    } else {
+      to_host_inproc_.insert(to_host_inproc_.end(), out.begin(), out.end());
+      stats_.bytes_to_host += out.size();
+    }
+  }
+}
+
+void SimModule::write_truth_row() {
+  if (!truth_) return;
+  while (plant_->time_s() >= next_truth_s_ - 1e-9) {
+    std::vector<double> v;
+    for (int ch = 1; ch <= kChannels; ++ch) v.push_back(plant_->probe_temp_c(ch));
+    const auto& x = plant_->node_temp_c();
+    for (Eigen::Index i = 0; i < x.size(); ++i) v.push_back(x[i]);
+    const auto& q = plant_->extra_heat_w();
+    for (Eigen::Index i = 0; i < q.size(); ++i) v.push_back(q[i]);
+    truth_->writer.append(plant_->time_s(), plant_->speed_rpm(), plant_->ambient_c(), v);
+    next_truth_s_ += opts_.truth_period_s;
+  }
+}
+
+double SimModule::sim_time_s() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return board_->time_s();
+}
+
+TruthRow SimModule::truth() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  TruthRow r;
+  r.time_s = plant_->time_s();
+  r.speed_rpm = plant_->speed_rpm();
+  r.ambient_c = plant_->ambient_c();
+  for (int ch = 1; ch <= kChannels; ++ch) r.probe_c[ch - 1] = plant_->probe_temp_c(ch);
+  return r;
+}
+
+SimModuleStats SimModule::stats() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  SimModuleStats s = stats_;
+  s.sim_time_s = board_->time_s();
+  s.board = board_->stats();
+  return s;
+}
+
+std::vector<double> SimModule::boot_times() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return boot_times_;
+}
+
+std::string SimModule::pty_slave() const { return pty_ ? pty_->bridge.slave_name() : std::string(); }
+
+void SimModule::replace_speed_from_now(const std::vector<SpeedSegment>& segs) {
+  std::lock_guard<std::mutex> lk(mu_);
+  plant_->replace_speed_from_now(segs);
+}
+
+void SimModule::queue_speed(const SpeedSegment& seg) {
+  std::lock_guard<std::mutex> lk(mu_);
+  plant_->queue_speed(seg);
+}
+
+SpeedProfile SimModule::speed_profile() const {
+  std::lock_guard<std::mutex> lk(mu_);
+  return plant_->speed_profile();
+}
+
+void SimModule::inject_fault(FaultSpec f) {
+  std::lock_guard<std::mutex> lk(mu_);
+  if (f.start_s < plant_->time_s()) f.start_s = plant_->time_s();
+  if (f.end_s <= f.start_s) throw std::invalid_argument("inject_fault: the fault ends before now");
+  plant_->add_fault(f);
+}
+
+void SimModule::set_effects(const HiddenEffects& fx) {
+  std::lock_guard<std::mutex> lk(mu_);
+  plant_->set_effects(fx);
+}
+
+void SimModule::power_cycle() {
+  std::lock_guard<std::mutex> lk(mu_);
+  power_cycle_requested_ = true;
+}
+
+void SimModule::host_send(const std::vector<uint8_t>& bytes) {
+  std::lock_guard<std::mutex> lk(mu_);
+  from_host_.insert(from_host_.end(), bytes.begin(), bytes.end());
+}
+
+std::vector<uint8_t> SimModule::host_receive() {
+  std::vector<uint8_t> out;
+  {
+    std::lock_guard<std::mutex> lk(mu_);
+    out.swap(to_host_inproc_);
+  }
+  cv_.notify_all();
+  return out;
+}
+
+}  // namespace btsm::sim

@@ -1,0 +1,342 @@
+// Per-channel thermal diagnosis: NORMAL / WARN / ALARM / SENSOR_FAULT with persistence,
+// hysteresis, a latched ALARM, and an overall state.
+//
+// Inputs per channel and sample: measured temperature (mK), model prediction (mK or kDiagNoValue
+// when there is no model), rate of rise (mK/min or kDiagNoValue; RiseRate below computes it), and
+// the channel's fault flag (ADC error, rail, RTD out of range ...).
+//
+// Conditions evaluated on each sample (residual = measured - predicted):
+//   alarm_cond  |residual| > alarm_band  OR  measured > abs_limit  OR  rise > max_rise (if > 0)
+//   warn_cond   |residual| > warn_band   (or alarm_cond)
+//   alarm_clear |residual| <= alarm_band*(1-h) AND measured <= abs_limit - abs_hysteresis AND
+//               rise <= max_rise*(1-h)                           (h = hysteresis_permille / 1000)
+//   normal      alarm_clear AND |residual| <= warn_band*(1-h)      ("back to normal")
+// Between the entry threshold and the (lower) exit threshold the state does not change: that is
+// the hysteresis band that stops a residual hovering at a threshold from toggling the state.
+//
+//                         warn_cond x N                    alarm_cond x N
+//            +--------+ ------------------> +------+ --------------------------+
+//            |        |                     |      |                           v
+//            | NORMAL | <------------------ | WARN |                    +-------------+
+//            |        |  normal x Mw        |      | <----------------  |    ALARM    |
+//            +--------+                     +------+  ack & alarm_clear |  (latched)  |
+//              ^  ^  |            alarm_cond x N                        |             |
+//              |  |  +----------------------------------------------->  |             |
+//              |  +---------------------------------------------------- |             |
+//              |        normal x Ma (auto-clear), or ack & normal       +-------------+
+//              |                                                          |      ^
+//              |  fault_clear x Mf, no latched alarm       fault (any)    |      | fault_clear x Mf,
+//              |                                                          v      | alarm was latched
+//            +------------------------------------------------------------------------+
+//            |                      SENSOR_FAULT  (entered at once from any state)     |
+//            +------------------------------------------------------------------------+
+//   N  = enter_samples        consecutive samples to ENTER warn or alarm (persistence)
+//   Mw = warn_clear_samples   consecutive "normal" samples to leave WARN
+//   Ma = alarm_clear_samples  consecutive "normal" samples to auto-clear an ALARM
+//   Mf = fault_clear_samples  consecutive samples without the fault flag to leave SENSOR_FAULT
+//   ack = acknowledge(): an ALARM whose condition is still present stays latched but is marked
+//         acknowledged and then leaves as soon as alarm_clear holds (to WARN if |residual| is still
+//         above the warn exit threshold, else NORMAL); an acknowledged alarm does not re-latch until
+//         alarm_cond persists N samples again.
+// A latched ALARM survives a sensor fault: when the fault clears the channel returns to ALARM.
+//
+// Overall state = the most severe channel state, ranked ALARM > SENSOR_FAULT > WARN > NORMAL: a
+// real over-temperature on one probe must never be masked by a broken probe elsewhere.
+//
+// Integer-only (mK), no division per sample except the hysteresis scaling; C++14, no std library.
+#ifndef BTSM_COMMON_DIAGNOSIS_HPP
+#define BTSM_COMMON_DIAGNOSIS_HPP
+
+#include <stdint.h>
+
+namespace btsm {
+
+// Wire values (2 bits).
+enum class DiagState : uint8_t { kNormal = 0, kWarn = 1, kAlarm = 2, kSensorFault = 3 };
+
+// Why the channel is (or is heading) where it is: bit set = condition true on the last sample.
+enum DiagReason : uint8_t {
+  kReasonResidualWarn = 0x01,
+  kReasonResidualAlarm = 0x02,
+  kReasonAbsLimit = 0x04,
+  kReasonRise = 0x08,
+  kReasonFault = 0x10,
+  kReasonAcknowledged = 0x20,  // ALARM acknowledged, waiting for the condition to clear
+  kReasonNoPrediction = 0x40,  // residual checks skipped (no model / no ambient)
+};
+
+const int32_t kDiagNoValue = -8388608L;  // same code as the wire's kMissing
+
+inline const char* diag_state_name(DiagState s) {
+  switch (s) {
+    case DiagState::kNormal: return "NORMAL";
+    case DiagState::kWarn: return "WARN";
+    case DiagState::kAlarm: return "ALARM";
+    case DiagState::kSensorFault: return "SENSOR_FAULT";
+  }
+  return "?";
+}
+
+// Rank for the overall state: ALARM > SENSOR_FAULT > WARN > NORMAL.
+inline uint8_t diag_severity(DiagState s) {
+  switch (s) {
+    case DiagState::kNormal: return 0;
+    case DiagState::kWarn: return 1;
+    case DiagState::kSensorFault: return 2;
+    case DiagState::kAlarm: return 3;
+  }
+  return 0;
+}
+
+inline DiagState diag_worst(DiagState a, DiagState b) { return diag_severity(b) > diag_severity(a) ? b : a; }
+
+struct DiagChannelLimits {
+  uint16_t warn_band_mK = 1500;         // |residual| entry threshold for WARN
+  uint16_t alarm_band_mK = 4000;        // |residual| entry threshold for ALARM
+  int32_t abs_limit_mK = 80000;         // absolute temperature limit, degC * 1000
+  uint16_t max_rise_mK_per_min = 3000;  // 0 = rate check disabled
+};
+
+struct DiagTiming {
+  uint8_t enter_samples = 3;         // N: persistence to enter WARN/ALARM (>= 1)
+  uint8_t warn_clear_samples = 3;    // Mw
+  uint8_t alarm_clear_samples = 60;  // Ma: 5 min at 5 s
+  uint8_t fault_clear_samples = 3;   // Mf
+  uint16_t hysteresis_permille = 200;  // exit threshold = entry * (1 - h); 200 = 20 % below entry
+  uint16_t abs_hysteresis_mK = 1000;   // absolute limit exit = limit - this
+};
+
+struct DiagInput {
+  int32_t measured_mK = kDiagNoValue;      // filtered temperature, degC * 1000
+  int32_t predicted_mK = kDiagNoValue;     // model prediction or kDiagNoValue
+  int32_t rise_mK_per_min = kDiagNoValue;  // or kDiagNoValue (not yet known)
+  bool fault = false;                      // channel fault flag for this sample
+};
+
+class DiagChannel {
+ public:
+  DiagState state() const { return state_; }
+  uint8_t reasons() const { return reasons_; }
+  bool alarm_latched() const { return latched_; }
+
+  void acknowledge() {
+    if (state_ == DiagState::kAlarm || (state_ == DiagState::kSensorFault && latched_)) acked_ = true;
+  }
+
+  // Back to NORMAL with all counters cleared (e.g. a new model was flashed).
+  void reset() { *this = DiagChannel(); }
+
+  DiagState update(const DiagInput& in, const DiagChannelLimits& lim, const DiagTiming& t) {
+    const uint8_t n_enter = t.enter_samples == 0 ? 1 : t.enter_samples;
+    if (in.fault || in.measured_mK == kDiagNoValue) {
+      reasons_ = kReasonFault;
+      if (state_ != DiagState::kSensorFault) {
+        latched_ = state_ == DiagState::kAlarm;
+        state_ = DiagState::kSensorFault;
+      }
+      count_ = 0;
+      alarm_run_ = 0;
+      warn_run_ = 0;
+      return state_;
+    }
+    const Conditions c = evaluate(in, lim, t);
+    reasons_ = c.reasons;
+    switch (state_) {
+      case DiagState::kSensorFault:
+        if (++count_ >= (t.fault_clear_samples == 0 ? 1 : t.fault_clear_samples)) {
+          count_ = 0;
+          if (latched_ && !(acked_ && c.alarm_clear)) {
+            state_ = DiagState::kAlarm;
+          } else {
+            latched_ = false;
+            acked_ = false;
+            state_ = DiagState::kNormal;
+          }
+        }
+        break;
+      case DiagState::kNormal:
+      case DiagState::kWarn:
+        // Persistence: count consecutive samples of the strongest condition present.
+        if (c.alarm) {
+          alarm_run_ = sat_inc(alarm_run_);
+        } else {
+          alarm_run_ = 0;
+        }
+        if (c.warn) {
+          warn_run_ = sat_inc(warn_run_);
+        } else {
+          warn_run_ = 0;
+        }
+        if (alarm_run_ >= n_enter) {
+          enter_alarm();
+        } else if (state_ == DiagState::kNormal) {
+          if (warn_run_ >= n_enter) {
+            state_ = DiagState::kWarn;
+            count_ = 0;
+          }
+        } else {  // WARN: leave after Mw consecutive normal samples
+          count_ = c.normal ? sat_inc(count_) : 0;
+          if (count_ >= (t.warn_clear_samples == 0 ? 1 : t.warn_clear_samples)) {
+            state_ = DiagState::kNormal;
+            count_ = 0;
+          }
+        }
+        break;
+      case DiagState::kAlarm:
+        if (acked_) reasons_ |= kReasonAcknowledged;
+        if (acked_ && c.alarm_clear) {
+          latched_ = false;
+          acked_ = false;
+          alarm_run_ = 0;
+          warn_run_ = 0;
+          count_ = 0;
+          state_ = c.normal ? DiagState::kNormal : DiagState::kWarn;
+          break;
+        }
+        count_ = c.normal ? sat_inc(count_) : 0;
+        if (count_ >= (t.alarm_clear_samples == 0 ? 1 : t.alarm_clear_samples)) {
+          latched_ = false;
+          acked_ = false;
+          alarm_run_ = 0;
+          warn_run_ = 0;
+          count_ = 0;
+          state_ = DiagState::kNormal;
+        }
+        break;
+    }
+    return state_;
+  }
+
+ private:
+  struct Conditions {
+    bool alarm;
+    bool warn;
+    bool alarm_clear;
+    bool normal;
+    uint8_t reasons;
+  };
+
+  static uint8_t sat_inc(uint8_t v) { return v == 0xFF ? v : static_cast<uint8_t>(v + 1); }
+
+  // x * (1000 - h) / 1000 for the exit thresholds, in 32 bits.
+  static int32_t exit_threshold(int32_t entry, uint16_t h_permille) {
+    const int32_t keep = 1000 - (h_permille > 1000 ? 1000 : static_cast<int32_t>(h_permille));
+    return static_cast<int32_t>((static_cast<int32_t>(entry) * keep) / 1000);
+  }
+
+  static Conditions evaluate(const DiagInput& in, const DiagChannelLimits& lim, const DiagTiming& t) {
+    Conditions c;
+    c.reasons = 0;
+    int32_t abs_res = 0;
+    const bool have_res = in.predicted_mK != kDiagNoValue;
+    if (have_res) {
+      const int32_t r = in.measured_mK - in.predicted_mK;
+      abs_res = r < 0 ? -r : r;
+    } else {
+      c.reasons |= kReasonNoPrediction;
+    }
+    const bool res_alarm = have_res && abs_res > static_cast<int32_t>(lim.alarm_band_mK);
+    const bool res_warn = have_res && abs_res > static_cast<int32_t>(lim.warn_band_mK);
+    const bool abs_alarm = in.measured_mK > lim.abs_limit_mK;
+    const bool have_rise = lim.max_rise_mK_per_min != 0 && in.rise_mK_per_min != kDiagNoValue;
+    const bool rise_alarm = have_rise && in.rise_mK_per_min > static_cast<int32_t>(lim.max_rise_mK_per_min);
+    if (res_warn) c.reasons |= kReasonResidualWarn;
+    if (res_alarm) c.reasons |= kReasonResidualAlarm;
+    if (abs_alarm) c.reasons |= kReasonAbsLimit;
+    if (rise_alarm) c.reasons |= kReasonRise;
+    c.alarm = res_alarm || abs_alarm || rise_alarm;
+    c.warn = res_warn || c.alarm;
+    const int32_t h = t.hysteresis_permille;
+    c.alarm_clear = (!have_res || abs_res <= exit_threshold(lim.alarm_band_mK, static_cast<uint16_t>(h))) &&
+                    in.measured_mK <= lim.abs_limit_mK - static_cast<int32_t>(t.abs_hysteresis_mK) &&
+                    (!have_rise || in.rise_mK_per_min <= exit_threshold(lim.max_rise_mK_per_min,
+                                                                         static_cast<uint16_t>(h)));
+    c.normal = c.alarm_clear &&
+               (!have_res || abs_res <= exit_threshold(lim.warn_band_mK, static_cast<uint16_t>(h)));
+    return c;
+  }
+
+  void enter_alarm() {
+    state_ = DiagState::kAlarm;
+    latched_ = true;
+    acked_ = false;
+    count_ = 0;
+  }
+
+  DiagState state_ = DiagState::kNormal;
+  uint8_t reasons_ = 0;
+  uint8_t count_ = 0;      // clear/exit counter of the current state
+  uint8_t alarm_run_ = 0;  // consecutive alarm_cond samples
+  uint8_t warn_run_ = 0;   // consecutive warn_cond samples
+  bool latched_ = false;
+  bool acked_ = false;
+};
+
+// All channels of a module; disabled channels stay NORMAL and do not count for the overall state.
+template <uint8_t kChannels>
+class Diagnosis {
+ public:
+  DiagTiming timing;
+  DiagChannelLimits limits[kChannels];
+  uint8_t enabled_mask = static_cast<uint8_t>((1U << kChannels) - 1U);
+
+  DiagState update(const DiagInput* in) {
+    overall_ = DiagState::kNormal;
+    for (uint8_t j = 0; j < kChannels; ++j) {
+      if (((enabled_mask >> j) & 1U) == 0) continue;
+      overall_ = diag_worst(overall_, ch_[j].update(in[j], limits[j], timing));
+    }
+    return overall_;
+  }
+  void acknowledge_all() {
+    for (uint8_t j = 0; j < kChannels; ++j) ch_[j].acknowledge();
+  }
+  void reset() {
+    for (uint8_t j = 0; j < kChannels; ++j) ch_[j].reset();
+    overall_ = DiagState::kNormal;
+  }
+  const DiagChannel& channel(uint8_t j) const { return ch_[j]; }
+  DiagState overall() const { return overall_; }
+
+ private:
+  DiagChannel ch_[kChannels];
+  DiagState overall_ = DiagState::kNormal;
+};
+
+// Rate of rise over a sliding window of kWindow samples: (T_now - T_oldest) scaled to mK/min.
+// kDiagNoValue until the window is full, and again after reset() (call it on a sensor fault).
+template <uint8_t kWindow>
+class RiseRate {
+  static_assert(kWindow >= 2, "window needs two samples");
+
+ public:
+  explicit RiseRate(uint16_t dt_ms = 5000) : dt_ms_(dt_ms) {}
+  void set_dt_ms(uint16_t dt_ms) { dt_ms_ = dt_ms; reset(); }
+  void reset() { count_ = 0; head_ = 0; }
+
+  // Returns the current rate in mK/min (or kDiagNoValue).
+  int32_t push(int32_t t_mK) {
+    buf_[head_] = t_mK;
+    head_ = static_cast<uint8_t>((head_ + 1) % kWindow);
+    if (count_ < kWindow) ++count_;
+    if (count_ < kWindow || dt_ms_ == 0) return kDiagNoValue;
+    const int32_t oldest = buf_[head_];  // next slot to be overwritten = oldest sample
+    // Float, not int64: avoids pulling 64-bit division into the AVR image; 24-bit mantissa is
+    // plenty for a rate compared against thresholds in mK/min.
+    const float span_min = static_cast<float>(dt_ms_) * static_cast<float>(kWindow - 1) / 60000.0f;
+    float rate = static_cast<float>(t_mK - oldest) / span_min;
+    if (rate > 8388607.0f) rate = 8388607.0f;
+    if (rate < -8388607.0f) rate = -8388607.0f;
+    return static_cast<int32_t>(rate < 0.0f ? rate - 0.5f : rate + 0.5f);
+  }
+
+ private:
+  int32_t buf_[kWindow] = {};
+  uint16_t dt_ms_;
+  uint8_t count_ = 0;
+  uint8_t head_ = 0;
+};
+
+}  // namespace btsm
+
+#endif  // BTSM_COMMON_DIAGNOSIS_HPP

@@ -1,0 +1,532 @@
+// The BTSM firmware core: acquisition -> RTD -> Kalman -> reduced model -> diagnosis -> SAMPLE
+// frames, plus the command protocol (common/wire_messages.hpp) and the persistent stores.
+//
+// `template <class Board> class App` runs unchanged on the ATmega328P (boards/bluno_beetle) and on
+// the native simulated board (boards/sim/native_board.hpp). poll() never waits: it does the work
+// that is due and returns; idle_budget_ms() then says how long the caller may sleep (DOUT/RDY,
+// received bytes and the 1 ms tick wake the MCU earlier). On AVR `main` loops poll() + idle sleep.
+#ifndef BTSM_FIRMWARE_APP_HPP
+#define BTSM_FIRMWARE_APP_HPP
+
+#include <stdint.h>
+
+#include "common/kalman.hpp"
+#include "common/reduced_model.hpp"
+#include "common/rtd.hpp"
+#include "common/sha256.hpp"
+#include "common/wire_frame.hpp"
+#include "common/wire_messages.hpp"
+#include "firmware/acquisition.hpp"
+#include "firmware/config.hpp"
+#include "firmware/device_key.hpp"
+#include "firmware/diagnosis_stage.hpp"
+#include "firmware/model_store.hpp"
+#include "hal/contracts.hpp"
+
+namespace btsm {
+
+static constexpr uint8_t kFirmwareMajor = 0;
+static constexpr uint8_t kFirmwareMinor = 1;
+static constexpr uint8_t kFirmwarePatch = 0;
+
+template <class Board>
+class App {
+  static_assert(hal::CheckBoard<Board>::value, "Board does not satisfy hal/contracts.hpp");
+  typedef decltype(static_cast<Board*>(0)->spi) Spi;
+  typedef decltype(static_cast<Board*>(0)->storage) Storage;
+
+ public:
+  static constexpr uint8_t kChannels = wire::kChannels;
+
+  explicit App(Board& board)
+      : board_(board), acq_(board.spi), store_(board.storage), writer_(board.storage) {}
+
+  void init() {
+    board_.watchdog.enable();
+    uint8_t rec[config_record::kSize];
+    for (uint8_t i = 0; i < config_record::kSize; ++i)
+      rec[i] = board_.storage.read(static_cast<uint16_t>(eeprom_layout::kConfigAddr + i));
+    config_.set_defaults();
+    config_record::decode(rec, config_);  // keeps defaults when missing or corrupt
+    load_and_bump_counters();
+    store_.boot(model_);
+    model_state_.x_q20 = 0;
+    model_initialised_ = false;
+    board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
+    apply_config();
+    start_ms_ = board_.clock.millis();
+    next_sweep_ms_ = start_ms_;
+    model_last_step_ms_ = start_ms_;
+    reset_cause_ = board_.power.reset_flags();
+  }
+
+  void poll() {
+    board_.watchdog.kick();
+    const uint32_t now = board_.clock.millis();
+    uint32_t budget = 0xFFFFFFFFUL;
+
+    // EEPROM work: the model store's writes first (an ACK waits for them), then config/counters.
+    if (store_.busy()) {
+      if (store_.step() && !store_.busy()) on_store_writes_done();
+      budget = 1;
+    } else if (writer_.busy()) {
+      if (writer_.step() && !writer_.busy() && ack_after_write_) send_deferred_ack();
+      budget = 1;
+    }
+
+    flush_output();
+    receive(now);
+
+    const uint32_t acq_budget = acq_.poll(now);
+    if (acq_budget < budget) budget = acq_budget;
+
+    // Sweep schedule: drift-free, re-anchored when more than one period behind.
+    if (static_cast<int32_t>(now - next_sweep_ms_) >= 0 && !sweep_in_progress_) {
+      acq_.request_sweep();
+      sweep_in_progress_ = true;
+      sweep_time_ms_ = now;
+      next_sweep_ms_ += config_.sample_period_ms;
+      if (static_cast<int32_t>(now - next_sweep_ms_) >= 0) next_sweep_ms_ = now + config_.sample_period_ms;
+    }
+    if (acq_.sweep_ready()) {
+      acq_.take_sweep();
+      sweep_in_progress_ = false;
+      process_sweep(now);
+      sample_pending_ = true;
+      budget = 0;
+    }
+    if (sample_pending_ && !out_pending_) {
+      build_sample();
+      sample_pending_ = false;
+    }
+    flush_output();
+    // REBOOT: give the UART time to send the ACK (a 64-byte frame takes 6 ms at 115200 baud).
+    if (reboot_pending_ && !out_pending_ && static_cast<int32_t>(now - reboot_at_ms_) >= 0) board_.power.reboot();
+
+    if (!sweep_in_progress_) {
+      const int32_t to_sweep = static_cast<int32_t>(next_sweep_ms_ - now);
+      const uint32_t t = to_sweep > 0 ? static_cast<uint32_t>(to_sweep) : 0;
+      if (t < budget) budget = t;
+    }
+    if (out_pending_ || rx_backlog_ || reboot_pending_) budget = budget > 1 ? 1 : budget;
+    // Wake at least this often to kick the watchdog (2 s timeout).
+    if (budget > kMaxSleepMs) budget = kMaxSleepMs;
+    budget_ms_ = budget;
+  }
+
+  // How long the caller may sleep before the next poll() (ms); events wake it earlier.
+  uint32_t idle_budget_ms() const { return budget_ms_; }
+
+  // ---- inspection (tests, simulation) -------------------------------------------------------
+  int32_t temperature_mK(uint8_t ch) const { return temp_mK_[ch]; }
+  uint8_t channel_status(uint8_t ch) const { return status_[ch]; }
+  const Acquisition<Spi>& acquisition() const { return acq_; }
+  const FirmwareConfig& config() const { return config_; }
+  wire::ModelState model_state() const { return store_.state(); }
+  uint32_t model_seq() const { return store_.active_seq(); }
+  uint32_t samples_sent() const { return sample_index_; }
+
+ private:
+  static constexpr uint8_t kMaxBytesPerPoll = 32;
+  static constexpr uint32_t kRebootDelayMs = 50;
+  static constexpr uint32_t kMaxSleepMs = 500;
+
+  // ---- configuration ------------------------------------------------------------------------
+  void apply_config() {
+    AcquisitionSetup s;
+    s.fs = config_.adc_fs;
+    s.enabled_mask = config_.enabled_mask();
+    s.r_ref_ohm = static_cast<float>(config_.r_ref_milliohm) * 0.001f;
+    acq_.configure(s);
+    KalmanParams<float> kp;
+    kp.process_noise_k2_per_s = static_cast<float>(config_.kalman_q) * 1e-6f;
+    kp.measurement_noise_k = sqrtf(static_cast<float>(config_.kalman_r)) * 1e-3f;
+    kp.dt_s = static_cast<float>(config_.sample_period_ms) * 0.001f;
+    for (uint8_t j = 0; j < kChannels; ++j) kalman_[j].configure(kp);
+    board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
+    diagnosis_.configure(config_.alarm_latch != 0);
+  }
+
+  void save_config() {
+    uint8_t rec[config_record::kSize];
+    config_record::encode(config_, rec);
+    writer_.queue(eeprom_layout::kConfigAddr, rec, config_record::kSize);
+  }
+
+  void load_and_bump_counters() {
+    uint8_t c[6];
+    for (uint8_t i = 0; i < 6; ++i) c[i] = board_.storage.read(static_cast<uint16_t>(eeprom_layout::kCountersAddr + i));
+    if (crc16_ccitt(c, 4) == get_le16(c + 4)) {
+      resets_ = get_le16(c);
+      watchdog_resets_ = get_le16(c + 2);
+    }
+    if (resets_ != 0xFFFF) ++resets_;
+    if (board_.watchdog.caused_last_reset() && watchdog_resets_ != 0xFFFF) ++watchdog_resets_;
+    put_le16(c, resets_);
+    put_le16(c + 2, watchdog_resets_);
+    put_le16(c + 4, crc16_ccitt(c, 4));
+    writer_.queue(eeprom_layout::kCountersAddr, c, 6);
+  }
+
+  // ---- measurement pipeline -----------------------------------------------------------------
+  void process_sweep(uint32_t now) {
+    const RtdCoefficients<float> pt1000 = iec60751<float>(1000.0f);
+    for (uint8_t j = 0; j < kChannels; ++j) {
+      uint8_t faults = 0;
+      int32_t t_mK = wire::kMissing;
+      if (config_.roles[j] == static_cast<uint8_t>(wire::ChannelRole::Disabled)) {
+        status_[j] = wire::kStatusDisabled;
+        temp_mK_[j] = wire::kMissing;
+        kalman_[j].reset();
+        continue;
+      }
+      const ChannelReading& r = acq_.reading(j);
+      faults = r.faults;
+      if (faults == 0) {
+        const RtdResult<float> t = rtd_temperature<float>(pt1000, r.r_ohm);
+        if (!t.ok()) {
+          faults = t.status == RtdStatus::kBelowRange ? wire::kFaultShort : wire::kFaultOpen;
+        } else {
+          const KalmanOutcome o = kalman_[j].update(t.value);
+          if (o == KalmanOutcome::kRejected) {
+            faults |= wire::kFaultKalmanReject;
+            if (kalman_rejects_ != 0xFFFF) ++kalman_rejects_;
+          }
+          const float est = kalman_[j].estimate();
+          t_mK = static_cast<int32_t>(est * 1000.0f + (est >= 0.0f ? 0.5f : -0.5f));
+        }
+      }
+      const uint8_t hard_faults = faults & static_cast<uint8_t>(~wire::kFaultKalmanReject);
+      if (hard_faults != 0) {
+        t_mK = wire::kMissing;  // a faulty channel never reports a temperature
+        kalman_[j].reset();
+        if (sensor_faults_ != 0xFFFF) ++sensor_faults_;
+      }
+      temp_mK_[j] = t_mK;
+      status_[j] = faults;
+    }
+    update_speed();
+    run_model(now);
+    diagnosis_.evaluate(store_.active() ? &model_ : 0, temp_mK_, predicted_mK_, status_, config_.roles,
+                        static_cast<uint32_t>(now - last_sweep_eval_ms_));
+    last_sweep_eval_ms_ = now;
+  }
+
+  void update_speed() {
+    if (speed_override_ == wire::kSpeedFromTach) {
+      speed_rpm_ = board_.tach.rpm();
+      speed_from_tach_ = true;
+    } else {
+      speed_rpm_ = speed_override_;
+      speed_from_tach_ = false;
+    }
+  }
+
+  void run_model(uint32_t now) {
+    if (!store_.active()) {
+      for (uint8_t j = 0; j < kChannels; ++j) predicted_mK_[j] = wire::kMissing;
+      model_last_step_ms_ = now;
+      return;
+    }
+    const int32_t ambient = model_.ambient_channel < kChannels ? temp_mK_[model_.ambient_channel] : wire::kMissing;
+    if (!model_initialised_) {
+      model_initialised_ = init_from_measurement(model_, model_state_, speed_rpm_, ambient, temp_mK_) ||
+                           ambient != wire::kMissing;
+      model_last_step_ms_ = now;
+    }
+    // The poles are discretised for the blob's dt: step once per elapsed dt (catch up at most
+    // 64 steps, e.g. after a long sample period), then report the latest prediction.
+    uint8_t steps = 0;
+    bool stepped = false;
+    while (static_cast<uint32_t>(now - model_last_step_ms_) >= model_.dt_ms && steps < 64) {
+      step(model_, model_state_, speed_rpm_, ambient, predicted_mK_);
+      model_last_step_ms_ += model_.dt_ms;
+      ++steps;
+      stepped = true;
+    }
+    if (steps == 64) model_last_step_ms_ = now;
+    if (!stepped && !have_prediction_) {
+      // First sweep after (re)start: report the prediction of the current state without stepping.
+      ReducedModelState probe = model_state_;
+      step(model_, probe, speed_rpm_, ambient, predicted_mK_);
+    }
+    have_prediction_ = true;
+  }
+
+  // ---- output -------------------------------------------------------------------------------
+  struct UartSink {
+    Board* board;
+    void operator()(uint8_t b) { board->serial.write(b); }
+  };
+
+  void queue_frame(wire::MsgType type, uint8_t seq, uint8_t len) {
+    out_type_ = wire::type_code(type);
+    out_seq_ = seq;
+    out_len_ = len;
+    out_pending_ = true;
+    flush_output();
+  }
+
+  void flush_output() {
+    if (!out_pending_) return;
+    const size_t size = wire::encoded_frame_size(out_type_, out_seq_, out_payload_, out_len_);
+    if (board_.serial.tx_free() < size) return;
+    UartSink sink = {&board_};
+    wire::write_frame(sink, out_type_, out_seq_, out_payload_, out_len_);
+    out_pending_ = false;
+  }
+
+  void send_ack(uint8_t seq, uint8_t type, wire::Nack status, uint16_t detail) {
+    wire::Ack a;
+    a.acked_seq = seq;
+    a.acked_type = type;
+    a.status = static_cast<uint8_t>(status);
+    a.detail = detail;
+    queue_frame(wire::MsgType::Ack, seq, wire::encode_ack(a, out_payload_));
+  }
+
+  void send_deferred_ack() {
+    ack_after_write_ = false;
+    send_ack(deferred_seq_, deferred_type_, wire::Nack::Ok, 0);
+  }
+
+  void on_store_writes_done() {
+    if (store_.activation_pending()) {
+      store_.activate_committed();
+      model_initialised_ = false;
+      have_prediction_ = false;
+      model_state_.x_q20 = 0;
+    }
+    if (ack_after_write_) send_deferred_ack();
+  }
+
+  void build_sample() {
+    wire::Sample s;
+    s.sample_index = sample_index_++;
+    s.time_ms = sweep_time_ms_ - start_ms_;
+    s.speed_rpm = speed_rpm_;
+    for (uint8_t j = 0; j < kChannels; ++j) {
+      s.temp_mK[j] = temp_mK_[j];
+      s.predicted_mK[j] = predicted_mK_[j];
+      s.channel_status[j] = static_cast<uint8_t>(status_[j] | diagnosis_.state(j));
+    }
+    s.overall = diagnosis_.overall();
+    if (diagnosis_.alarm_latched()) s.overall |= wire::kOverallAlarmLatched;
+    if (store_.active()) s.overall |= wire::kOverallModelActive;
+    if (speed_from_tach_) s.overall |= wire::kOverallSpeedFromTach;
+    const uint8_t len = wire::encode_sample(s, out_payload_);
+    if (len != 0) queue_frame(wire::MsgType::Sample, static_cast<uint8_t>(s.sample_index), len);
+  }
+
+  // ---- input --------------------------------------------------------------------------------
+  void receive(uint32_t now) {
+    rx_backlog_ = false;
+    for (uint8_t n = 0; n < kMaxBytesPerPoll; ++n) {
+      // One request at a time: wait while a response or a stored write is outstanding.
+      if (out_pending_ || ack_after_write_ || store_.busy()) {
+        rx_backlog_ = true;
+        return;
+      }
+      uint8_t b;
+      if (!board_.serial.read(b)) return;
+      if (decoder_.push(b)) handle_frame(now);
+    }
+    rx_backlog_ = true;
+  }
+
+  void handle_frame(uint32_t now) {
+    const uint8_t type = decoder_.type();
+    const uint8_t seq = decoder_.seq();
+    const uint8_t len = decoder_.payload_len();
+    const uint8_t* p = decoder_.payload();
+    uint8_t min_len = 0, max_len = 0;
+    if (!wire::is_host_to_module(type) || !wire::payload_length_range(type, min_len, max_len)) {
+      send_ack(seq, type, wire::Nack::UnknownType, 0);
+      return;
+    }
+    if (len < min_len || len > max_len) {
+      send_ack(seq, type, wire::Nack::BadLength, min_len);
+      return;
+    }
+    switch (static_cast<wire::MsgType>(type)) {
+      case wire::MsgType::GetInfo: send_info(seq, now); return;
+      case wire::MsgType::SetSpeed: {
+        wire::SetSpeed m;
+        if (!wire::decode_set_speed(p, len, m)) return send_ack(seq, type, wire::Nack::BadValue, 0);
+        speed_override_ = m.rpm;
+        return send_ack(seq, type, wire::Nack::Ok, 0);
+      }
+      case wire::MsgType::SetConfig: {
+        wire::ConfigValue m;
+        if (!wire::decode_set_config(p, len, m)) return send_ack(seq, type, wire::Nack::BadValue, p[0]);
+        if (writer_.busy()) return send_ack(seq, type, wire::Nack::Busy, 0);
+        config_.set(m.key, m.value);
+        apply_config();
+        save_config();
+        deferred_seq_ = seq;
+        deferred_type_ = type;
+        ack_after_write_ = true;  // ACK once the record is in EEPROM
+        return;
+      }
+      case wire::MsgType::GetConfig: {
+        wire::GetConfig m;
+        wire::ConfigValue v;
+        if (!wire::decode_get_config(p, len, m) || !config_.get(m.key, v.value))
+          return send_ack(seq, type, wire::Nack::BadValue, p[0]);
+        v.key = m.key;
+        queue_frame(wire::MsgType::Config, seq, wire::encode_config(v, out_payload_));
+        return;
+      }
+      case wire::MsgType::AckAlarm:
+        diagnosis_.acknowledge();
+        return send_ack(seq, type, wire::Nack::Ok, 0);
+      case wire::MsgType::ModelBegin: return model_begin(seq, type, p, len, now);
+      case wire::MsgType::ModelChunk: {
+        wire::ModelChunk m;
+        if (!wire::decode_model_chunk(p, len, m)) return send_ack(seq, type, wire::Nack::BadOffset, 0);
+        uint16_t detail = 0;
+        const wire::Nack r = store_.chunk(m.offset, m.data, m.len, detail);
+        if (r != wire::Nack::Ok) return send_ack(seq, type, r, detail);
+        deferred_seq_ = seq;
+        deferred_type_ = type;
+        ack_after_write_ = true;  // ACK once the chunk is in EEPROM
+        return;
+      }
+      case wire::MsgType::ModelCommit: {
+        wire::ModelCommit m;
+        wire::decode_model_commit(p, len, m);
+        uint16_t detail = 0;
+        const wire::Nack r = store_.commit(m.hmac, model_, detail);
+        if (r != wire::Nack::Ok) return send_ack(seq, type, r, detail);
+        deferred_seq_ = seq;
+        deferred_type_ = type;
+        ack_after_write_ = true;  // ACK once the commit marker is written
+        return;
+      }
+      case wire::MsgType::ModelRead: {
+        wire::ModelRead m;
+        if (!wire::decode_model_read(p, len, m) ||
+            static_cast<uint32_t>(m.offset) + m.len > eeprom_layout::kBlobSize)
+          return send_ack(seq, type, wire::Nack::BadOffset, eeprom_layout::kBlobSize);
+        if (!store_.active()) return send_ack(seq, type, wire::Nack::NoSession, 0);
+        wire::ModelData d;
+        d.offset = m.offset;
+        d.len = m.len;
+        for (uint8_t i = 0; i < m.len; ++i) d.data[i] = store_.read_active_byte(static_cast<uint16_t>(m.offset + i));
+        queue_frame(wire::MsgType::ModelData, seq, wire::encode_model_data(d, out_payload_));
+        return;
+      }
+      case wire::MsgType::Reboot:
+        send_ack(seq, type, wire::Nack::Ok, 0);
+        reboot_pending_ = true;
+        reboot_at_ms_ = now + kRebootDelayMs;
+        return;
+      default: return send_ack(seq, type, wire::Nack::UnknownType, 0);
+    }
+  }
+
+  void send_info(uint8_t seq, uint32_t now) {
+    uint8_t rec[device_key::kRecordSize];
+    board_.identity.read_key_record(rec, device_key::kRecordSize);
+    wire::Info m;
+    m.fw_major = kFirmwareMajor;
+    m.fw_minor = kFirmwareMinor;
+    m.fw_patch = kFirmwarePatch;
+    m.protocol_version = wire::kProtocolVersion;
+    m.device_id = device_key::record_valid(rec) ? get_le32(rec + device_key::kOffsetDeviceId) : 0;
+    secure_zero(rec, sizeof rec);
+    m.model_crc = store_.active_blob_crc();
+    m.model_seq = store_.active_seq();
+    m.uptime_s = (now - start_ms_) / 1000;
+    m.model_state = static_cast<uint8_t>(store_.state());
+    m.reset_cause = reset_cause_;
+    const AcquisitionCounters& c = acq_.counters();
+    m.adc_timeouts = c.adc_timeouts;
+    m.frame_errors = decoder_.counters().frame_errors();
+    m.kalman_rejects = kalman_rejects_;
+    m.sensor_faults = sensor_faults_;
+    m.resets = resets_;
+    m.watchdog_resets = watchdog_resets_;
+    queue_frame(wire::MsgType::Info, seq, wire::encode_info(m, out_payload_));
+  }
+
+  void model_begin(uint8_t seq, uint8_t type, const uint8_t* p, uint8_t len, uint32_t now) {
+    wire::ModelBegin m;
+    if (!wire::decode_model_begin(p, len, m))
+      return send_ack(seq, type, wire::Nack::BadLength, eeprom_layout::kBlobSize);
+    uint8_t rec[device_key::kRecordSize];
+    board_.identity.read_key_record(rec, device_key::kRecordSize);
+    if (!device_key::record_valid(rec)) {
+      secure_zero(rec, sizeof rec);
+      return send_ack(seq, type, wire::Nack::AuthFailed, 1);  // no key: model writes refused
+    }
+    // Fresh nonce: SHA-256 over conversion-noise bits, a counter that never repeats within a
+    // boot, the boot count and timer entropy; first 16 bytes.
+    uint8_t seed[16];
+    put_le32(seed, acq_.entropy());
+    put_le32(seed + 4, ++nonce_counter_);
+    put_le16(seed + 8, resets_);
+    put_le16(seed + 10, board_.identity.entropy_bits());
+    put_le32(seed + 12, now);
+    wire::AuthChallenge ch;
+    {
+      uint8_t digest[kSha256DigestSize];
+      sha256(seed, sizeof seed, digest);
+      for (uint8_t i = 0; i < wire::kNonceSize; ++i) ch.nonce[i] = digest[i];
+    }
+    const wire::Nack r = store_.begin(m.total_len, m.blob_crc32, ch.nonce, wire::kNonceSize,
+                                      rec + device_key::kOffsetKey, static_cast<uint8_t>(device_key::kKeySize));
+    secure_zero(rec, sizeof rec);
+    if (r != wire::Nack::Ok) return send_ack(seq, type, r, r == wire::Nack::BadLength ? eeprom_layout::kBlobSize : 0);
+    queue_frame(wire::MsgType::AuthChallenge, seq, wire::encode_auth_challenge(ch, out_payload_));
+  }
+
+  Board& board_;
+  Acquisition<Spi> acq_;
+  ModelStore<Storage> store_;
+  EepromWriter<Storage> writer_;
+  wire::FrameDecoder decoder_;
+  FirmwareConfig config_;
+  ReducedModel model_;
+  ReducedModelState model_state_;
+  ScalarKalman<float> kalman_[kChannels];
+  DiagnosisStage diagnosis_;
+  int32_t temp_mK_[kChannels] = {wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing};
+  int32_t predicted_mK_[kChannels] = {wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing};
+  uint8_t status_[kChannels] = {0, 0, 0, 0, 0};
+  uint8_t out_payload_[wire::kMaxPayload];
+  uint32_t start_ms_ = 0;
+  uint32_t next_sweep_ms_ = 0;
+  uint32_t sweep_time_ms_ = 0;
+  uint32_t last_sweep_eval_ms_ = 0;
+  uint32_t model_last_step_ms_ = 0;
+  uint32_t sample_index_ = 0;
+  uint32_t nonce_counter_ = 0;
+  uint32_t budget_ms_ = 0;
+  uint32_t reboot_at_ms_ = 0;
+  uint16_t speed_rpm_ = 0;
+  uint16_t speed_override_ = wire::kSpeedFromTach;
+  uint16_t resets_ = 0;
+  uint16_t watchdog_resets_ = 0;
+  uint16_t kalman_rejects_ = 0;
+  uint16_t sensor_faults_ = 0;
+  uint8_t out_type_ = 0;
+  uint8_t out_seq_ = 0;
+  uint8_t out_len_ = 0;
+  uint8_t deferred_seq_ = 0;
+  uint8_t deferred_type_ = 0;
+  uint8_t reset_cause_ = 0;
+  bool out_pending_ = false;
+  bool sample_pending_ = false;
+  bool sweep_in_progress_ = false;
+  bool ack_after_write_ = false;
+  bool reboot_pending_ = false;
+  bool rx_backlog_ = false;
+  bool speed_from_tach_ = false;
+  bool model_initialised_ = false;
+  bool have_prediction_ = false;
+};
+
+}  // namespace btsm
+
+#endif

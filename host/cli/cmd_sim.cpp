@@ -1,0 +1,206 @@
+// btsm sim-module: a simulated BTSM module on a pty (sim engineer).
+#include "boards/sim/runner/sim_module.hpp"
+#include "cli_support.hpp"
+#include "commands.hpp"
+
+#include <fmt/core.h>
+
+#include <atomic>
+#include <chrono>
+#include <csignal>
+#include <cmath>
+#include <filesystem>
+#include <iostream>
+#include <memory>
+#include <thread>
+#include <unistd.h>
+
+namespace btsm::cli {
+namespace {
+
+std::atomic<bool> g_interrupted{false};
+extern "C" void on_sigint(int) { g_interrupted = true; }
+
+std::string default_elf_path() {
+  char buf[4096] = {};
+  const ssize_t n = readlink("/proc/self/exe", buf, sizeof buf - 1);
+  if (n <= 0) return "btsm-fw-bluno.elf";
+  return (std::filesystem::path(std::string(buf, size_t(n))).parent_path() / "btsm-fw-bluno.elf").string();
+}
+
+struct SimArgs {
+  std::string board = "native";
+  std::string pty;
+  std::string elf;
+  std::string profile, profile_file, ambient = "20";
+  std::string time_scale = "max";
+  std::string truth_out;
+  double truth_period_s = 1.0;
+  std::vector<std::string> faults, effects;
+  std::string eeprom;
+  std::string duration;
+  bool no_wait = false;
+  uint64_t seed = 1;
+  double noise = 1.0;
+  std::string ch5 = "surface";
+  double ch5_fraction = 0.5;
+  double start_steady_rpm = -1.0;
+  bool json = false;
+};
+
+void run_sim(const SimArgs& a) {
+  sim::SimModuleOptions o;
+  try {
+    o.board = sim::parse_board_kind(a.board);
+    if (!a.profile.empty()) o.plant.speed = sim::SpeedProfile::parse(a.profile);
+    if (!a.profile_file.empty()) o.plant.speed = sim::SpeedProfile::load_file(a.profile_file);
+    o.plant.ambient = sim::AmbientProfile::parse(a.ambient);
+    for (const auto& f : a.faults) o.plant.faults.push_back(sim::parse_fault(f));
+    for (const auto& e : a.effects) sim::parse_effect(e, o.plant.effects);
+    if (a.ch5 == "surface") o.plant.ch5 = sim::Ch5Mode::HousingSurface;
+    else if (a.ch5 == "disabled") o.plant.ch5 = sim::Ch5Mode::Disabled;
+    else throw std::invalid_argument("--ch5 '" + a.ch5 + "': expected surface or disabled");
+    o.plant.ch5_surface_fraction = a.ch5_fraction;
+    if (a.start_steady_rpm >= 0.0) {
+      o.plant.start_steady = true;
+      o.plant.start_steady_rpm = a.start_steady_rpm;
+    }
+    if (a.time_scale == "max") o.time_scale = 0.0;
+    else {
+      size_t used = 0;
+      o.time_scale = std::stod(a.time_scale, &used);
+      if (used != a.time_scale.size() || !(o.time_scale > 0.0))
+        throw std::invalid_argument("--time-scale '" + a.time_scale + "': expected a number > 0 or max");
+    }
+    o.duration_s = a.duration.empty() ? o.plant.speed.total_duration_s()
+                                      : sim::parse_duration_s(a.duration, "--duration");
+    if (!(o.duration_s > 0.0)) throw std::invalid_argument("--duration must be > 0");
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  o.pty_path = a.pty;
+  o.elf_path = a.elf.empty() ? default_elf_path() : a.elf;
+  if (o.board == sim::BoardKind::Avr && !std::filesystem::exists(o.elf_path))
+    throw CommandError(kExitUsage, "--elf " + o.elf_path + ": no such firmware image (build it, or pass --elf)");
+  o.truth_csv = a.truth_out;
+  o.truth_period_s = a.truth_period_s;
+  o.eeprom_path = a.eeprom;
+  o.wait_for_host = !a.no_wait;
+  o.adc.seed = a.seed;
+  o.adc.noise_scale = a.noise;
+  o.log = [](const std::string& s) { std::cerr << s << "\n"; };
+
+  std::unique_ptr<sim::SimModule> m;
+  try {
+    m = std::make_unique<sim::SimModule>(o);
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(kExitUsage, e.what());
+  } catch (const std::runtime_error& e) {
+    throw CommandError(kExitFailure, e.what());
+  }
+  std::cerr << fmt::format("sim-module: {} board, pty {} -> {}, {:.0f} s simulated, time scale {}\n",
+                           m->board_kind(), a.pty, m->pty_slave(), o.duration_s, a.time_scale);
+  g_interrupted = false;
+  auto old = std::signal(SIGINT, on_sigint);
+  auto old_term = std::signal(SIGTERM, on_sigint);
+  m->start();
+  auto last = std::chrono::steady_clock::now();
+  while (m->running()) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    if (g_interrupted) {
+      std::cerr << "sim-module: interrupted, stopping\n";
+      m->stop();
+      break;
+    }
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last > std::chrono::seconds(10)) {
+      last = now;
+      const auto s = m->stats();
+      const auto t = m->truth();
+      std::cerr << fmt::format("sim-module: t = {:.0f} s ({:.1f} %), {:.0f} rpm, T1 {:.3f} degC, speed-up {:.0f}x\n",
+                               s.sim_time_s, 100.0 * s.sim_time_s / o.duration_s, t.speed_rpm,
+                               t.probe_c[0], s.wall_time_s > 0 ? s.sim_time_s / s.wall_time_s : 0.0);
+    }
+  }
+  m->wait();
+  std::signal(SIGINT, old);
+  std::signal(SIGTERM, old_term);
+  const auto s = m->stats();
+  const std::string err = m->error();
+  if (a.json) {
+    nlohmann::json j;
+    j["board"] = m->board_kind();
+    j["sim_time_s"] = s.sim_time_s;
+    j["wall_time_s"] = s.wall_time_s;
+    j["waited_for_host_s"] = s.waited_s;
+    j["speedup"] = s.wall_time_s > 0 ? s.sim_time_s / s.wall_time_s : 0.0;
+    j["bytes_to_host"] = s.bytes_to_host;
+    j["bytes_from_host"] = s.bytes_from_host;
+    j["bytes_dropped"] = s.bytes_dropped;
+    j["mcu_resets"] = s.board.mcu_resets;
+    if (s.board.cycles) {
+      j["cpu_cycles"] = s.board.cycles;
+      j["cpu_active_cycles"] = s.board.active_cycles;
+      j["cpu_duty"] = double(s.board.active_cycles) / double(s.board.cycles);
+    }
+    if (!err.empty()) j["error"] = err;
+    print_json(j);
+  } else {
+    std::cerr << fmt::format("sim-module: done, {:.0f} s simulated in {:.1f} s ({:.0f}x), {} bytes to host\n",
+                             s.sim_time_s, s.wall_time_s, s.wall_time_s > 0 ? s.sim_time_s / s.wall_time_s : 0.0,
+                             s.bytes_to_host);
+  }
+  if (!err.empty()) throw CommandError(kExitFailure, err);
+}
+
+}  // namespace
+
+void register_sim_commands(CLI::App& app) {
+  auto a = std::make_shared<SimArgs>();
+  auto* cmd = app.add_subcommand(
+      "sim-module",
+      "Run a simulated BTSM module (spindle plant, AD7794, firmware) on a pty.\n"
+      "The module speaks the real wire protocol on PATH (a symlink to a pseudo-terminal), so every\n"
+      "btsm device command works with --port PATH. Simulated time runs faster than real time;\n"
+      "by default the simulation waits while no host has the pty open or the host does not read,\n"
+      "so nothing is lost. The module's SAMPLE time_ms is its own clock (simulated uptime).\n"
+      "Durations take units s, m, h (default s). Examples:\n"
+      "  btsm sim-module --pty /tmp/btsm-sim --profile 6h@6000,4h@0,2h@3000 --truth-out truth.csv\n"
+      "  btsm sim-module --board avr --pty /tmp/btsm-avr --fault open:ch2@1h --duration 2h");
+  cmd->add_option("--board", a->board, "native (firmware core built for the host) or avr (real image in simavr)")
+      ->check(CLI::IsMember({"native", "avr"}))
+      ->capture_default_str();
+  cmd->add_option("--pty", a->pty, "path of the symlink to the module's pty (the port a host opens)")->required();
+  cmd->add_option("--elf", a->elf, "AVR firmware image for --board avr (default: btsm-fw-bluno.elf next to btsm)");
+  auto* prof = cmd->add_option("--profile", a->profile,
+                               "speed profile DURATION@RPM,... e.g. 6h@6000,4h@0 (last speed holds after the end; default 1h@0)");
+  auto* pfile = cmd->add_option("--profile-file", a->profile_file,
+                                "file with speed segments (DURATION@RPM separated by commas/lines, # comments)");
+  prof->excludes(pfile);
+  cmd->add_option("--ambient", a->ambient,
+                  "ambient degC: constant (20) or START,DURATION@DEGC ramps (20,2h@22,4h@22)")
+      ->capture_default_str();
+  cmd->add_option("--time-scale", a->time_scale, "simulated seconds per wall second, or max")->capture_default_str();
+  cmd->add_option("--truth-out", a->truth_out,
+                  "write the plant's true temperatures (recording CSV: T1..T5 at the probes, node temperatures, extra heat)");
+  cmd->add_option("--truth-period", a->truth_period_s, "seconds between truth rows")->capture_default_str();
+  cmd->add_option("--fault", a->faults,
+                  "fault KIND[:ARG]@START[-END], repeatable: open:ch2@3600, openchain:ch3@1h, short:ch1@100, "
+                  "noadc@0, noref@50, bearing:25W@2h");
+  cmd->add_option("--effect", a->effects,
+                  "hidden effect (not announced to the host), repeatable: bearing-tc:K (rear-bearing heat x (1 + K theta1)), "
+                  "run-in:W/TAU (W per 1000 rpm of speed increase at both bearings, decaying with TAU)");
+  cmd->add_option("--eeprom", a->eeprom, "EEPROM image file (1024 bytes), loaded at start and saved at exit");
+  cmd->add_option("--duration", a->duration, "simulated run time (default: the profile's length)");
+  cmd->add_flag("--no-wait", a->no_wait, "free-running: drop output while no host listens instead of waiting");
+  cmd->add_option("--seed", a->seed, "AD7794 noise seed")->capture_default_str();
+  cmd->add_option("--noise", a->noise, "AD7794 noise scale (1 = datasheet model, 0 = noiseless)")->capture_default_str();
+  cmd->add_option("--ch5", a->ch5, "spare probe: surface (housing surface) or disabled (AIN5 open)")->capture_default_str();
+  cmd->add_option("--ch5-fraction", a->ch5_fraction, "share of the housing rise seen by the surface probe")
+      ->capture_default_str();
+  cmd->add_option("--start-steady", a->start_steady_rpm, "start in thermal steady state at this speed (rpm) instead of cold");
+  cmd->add_flag("--json", a->json, "print run statistics as JSON on stdout at the end");
+  cmd->callback([a] { run_sim(*a); });
+}
+
+}  // namespace btsm::cli

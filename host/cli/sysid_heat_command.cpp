@@ -1,0 +1,262 @@
+// `btsm heat MODEL.json REC.csv`: inverse estimation of time-varying heat sources (heat_inverse.hpp).
+#include "sysid_heat_command.hpp"
+
+#include "cli_support.hpp"
+#include "host/thermal/heat_inverse.hpp"
+#include "host/thermal/network.hpp"
+#include "host/thermal/recording.hpp"
+#ifdef BTSM_HAVE_REPORT
+#include "host/report/plot.hpp"
+#endif
+
+#include <fmt/core.h>
+#include <nlohmann/json.hpp>
+
+#include <chrono>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <iostream>
+#include <sstream>
+
+namespace btsm::cli {
+namespace {
+
+namespace th = btsm::thermal;
+
+struct HeatArgs {
+  std::string model, recording, method = "tikhonov1", rule = "gcv", scheme = "cn", out_dir, nodes;
+  double step_s = 60.0, alpha = 0.0, noise_k = 0.0, alpha_min = 1e-10, alpha_max = 1e3;
+  int alpha_points = 40;
+  bool keep_model_sources = false, json = false;
+};
+
+std::vector<int> parse_nodes(const th::Network& net, const std::string& list) {
+  std::vector<int> out;
+  std::stringstream ss(list);
+  std::string name;
+  while (std::getline(ss, name, ',')) {
+    if (name.empty()) continue;
+    const int i = net.node_index(name);
+    if (i < 0) {
+      std::string known;
+      for (const auto& n : net.nodes) known += (known.empty() ? "" : ", ") + n.name;
+      throw CommandError(kExitUsage, "--nodes: no node '" + name + "' in network " + net.name + " (nodes: " + known + ")");
+    }
+    out.push_back(i);
+  }
+  return out;
+}
+
+void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recording& rec, const th::InverseProblem& p,
+                   const th::HeatInverseResult& r, const std::vector<std::string>& cols) {
+  namespace fs = std::filesystem;
+  std::error_code ec;
+  fs::create_directories(a.out_dir, ec);
+  if (ec) throw CommandError(kExitFailure, "cannot create --out directory " + a.out_dir + ": " + ec.message());
+  const int m = static_cast<int>(p.source_nodes.size());
+  {
+    const std::string path = a.out_dir + "/heat_sources.csv";
+    std::ofstream f(path);
+    if (!f) throw CommandError(kExitFailure, "cannot write " + path);
+    f << "# model: " << a.model << "\n# recording: " << a.recording << "\n# method: " << a.method
+      << "\n# alpha_rule: " << r.rule << "\n# alpha_K2_per_W2: " << fmt::format("{:.6g}", r.alpha)
+      << "\n# noise_sigma_K: " << fmt::format("{:.6g}", r.noise_sigma_k) << (r.noise_estimated ? " (estimated)" : "")
+      << "\n# residual_rms_K: " << fmt::format("{:.6g}", r.residual_rms_k) << "\n";
+    f << "step_start_s,step_end_s";
+    for (int j = 0; j < m; ++j) f << "," << net.nodes[p.source_nodes[j]].name << "_W," << net.nodes[p.source_nodes[j]].name << "_sigma_W";
+    f << "\n";
+    for (int i = 0; i < r.heat_w.rows(); ++i) {
+      const double end = i + 1 < r.heat_w.rows() ? r.piece_start_s[i + 1] : rec.time_s.back();
+      f << fmt::format("{:.6g},{:.6g}", r.piece_start_s[i], end);
+      for (int j = 0; j < m; ++j) f << fmt::format(",{:.5f},{:.5f}", r.heat_w(i, j), r.heat_sigma_w(i, j));
+      f << "\n";
+    }
+  }
+  {
+    const std::string path = a.out_dir + "/heat_alpha_scan.csv";
+    std::ofstream f(path);
+    if (!f) throw CommandError(kExitFailure, "cannot write " + path);
+    f << "alpha_K2_per_W2,rss_K2,seminorm_W2,dof,gcv\n";
+    for (const auto& s : r.scan) f << fmt::format("{:.6g},{:.8g},{:.8g},{:.6g},{:.8g}\n", s.alpha, s.rss_k2, s.seminorm_w2, s.dof, s.gcv);
+  }
+#ifdef BTSM_HAVE_REPORT
+  namespace rp = btsm::report;
+  std::vector<rp::Plot> panels;
+  rp::Plot src{"Estimated heat sources (" + a.method + ", alpha by " + r.rule + fmt::format(" = {:.3g})", r.alpha), "time [h]", "heat [W]", {}, false};
+  for (int j = 0; j < m; ++j) {
+    rp::Series s{net.nodes[p.source_nodes[j]].name, {}, {}, rp::Series::Style::Step};
+    for (int i = 0; i < r.heat_w.rows(); ++i) {
+      s.x.push_back(r.piece_start_s[i] / 3600.0);
+      s.y.push_back(r.heat_w(i, j));
+    }
+    src.series.push_back(std::move(s));
+  }
+  panels.push_back(src);
+  rp::Plot temps{"Measured (points) and fitted (lines) temperatures", "time [h]", "temperature [degC]", {}, false};
+  rp::Plot res{"Residual measured - fitted", "time [h]", "residual [K]", {}, false};
+  for (int c = 0; c < p.measured.cols(); ++c) {
+    rp::Series meas{cols[c] + " measured", {}, {}, rp::Series::Style::Points};
+    rp::Series fit{cols[c] + " fitted", {}, {}, rp::Series::Style::Line};
+    rp::Series e{cols[c], {}, {}, rp::Series::Style::Line};
+    const Eigen::VectorXd fitted = r.fitted_c * p.measure_map.row(c).transpose();
+    const int stride = std::max<int>(1, static_cast<int>(rec.rows() / 4000));
+    for (size_t k = 0; k < rec.rows(); k += stride) {
+      const double t = rec.time_s[k] / 3600.0;
+      meas.x.push_back(t); meas.y.push_back(p.measured(k, c));
+      fit.x.push_back(t); fit.y.push_back(fitted(k));
+      e.x.push_back(t); e.y.push_back(p.measured(k, c) - fitted(k));
+    }
+    temps.series.push_back(std::move(meas));
+    temps.series.push_back(std::move(fit));
+    res.series.push_back(std::move(e));
+  }
+  panels.push_back(temps);
+  panels.push_back(res);
+  if (!r.scan.empty()) {
+    rp::Plot scan{"Alpha scan: GCV function (log10 alpha on x)", "log10 alpha [K^2/W^2]", "GCV [K^2]", {}, true};
+    rp::Series g{"GCV", {}, {}, rp::Series::Style::Line};
+    for (const auto& s : r.scan) { g.x.push_back(std::log10(s.alpha)); g.y.push_back(s.gcv); }
+    scan.series.push_back(std::move(g));
+    panels.push_back(scan);
+  }
+  rp::save_panels(panels, a.out_dir + "/heat_sources");
+#endif
+}
+
+void run_heat(const HeatArgs& a) {
+  th::HeatInverseOptions o;
+  try {
+    o.order = th::parse_tikhonov_order(a.method);
+    o.rule = th::parse_alpha_rule(a.rule);
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  if (a.scheme == "cn") o.scheme = th::Discretisation::CrankNicolson;
+  else if (a.scheme == "exact") o.scheme = th::Discretisation::ExactZoh;
+  else throw CommandError(kExitUsage, "--scheme must be cn or exact, not '" + a.scheme + "'");
+  if (!(a.step_s > 0)) throw CommandError(kExitUsage, "--step must be > 0 s");
+  if (o.rule == th::AlphaRule::Fixed && !(a.alpha > 0)) throw CommandError(kExitUsage, "--alpha-rule fixed needs --alpha > 0");
+  o.step_s = a.step_s;
+  o.alpha_fixed = a.alpha;
+  o.noise_sigma_k = a.noise_k;
+  o.alpha_min = a.alpha_min;
+  o.alpha_max = a.alpha_max;
+  o.alpha_points = a.alpha_points;
+
+  th::ModelWithParameters model;
+  th::Recording rec;
+  try {
+    model = th::load_model_with_parameters(a.model);
+    rec = th::read_recording_csv(a.recording);
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  const std::vector<int> nodes = parse_nodes(model.network, a.nodes);
+  th::InverseProblem p;
+  try {
+    p = th::make_inverse_problem(model.network, model.params, rec, nodes, a.keep_model_sources);
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  const std::vector<std::string> cols = th::measured_columns(model.network, rec);
+  std::cerr << fmt::format("heat: {} samples ({:.2f} h), {} measured columns, {} source nodes, {:g} s steps; alpha by {}\n",
+                           rec.rows(), (rec.time_s.back() - rec.time_s.front()) / 3600.0, cols.size(), p.source_nodes.size(),
+                           a.step_s, a.rule);
+  const auto t0 = std::chrono::steady_clock::now();
+  th::HeatInverseResult r;
+  try {
+    r = th::solve_heat_inverse(p, o);
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  std::cerr << fmt::format("heat: done in {:.2f} s\n", secs);
+  if (!a.out_dir.empty()) write_outputs(a, model.network, rec, p, r, cols);
+
+  const int m = static_cast<int>(p.source_nodes.size());
+  if (a.json) {
+    nlohmann::json j;
+    j["model"] = a.model;
+    j["recording"] = a.recording;
+    j["method"] = a.method;
+    j["alpha_rule"] = r.rule;
+    j["alpha_K2_per_W2"] = r.alpha;
+    j["step_s"] = a.step_s;
+    j["scheme"] = a.scheme;
+    j["noise_sigma_K"] = r.noise_sigma_k;
+    j["noise_estimated"] = r.noise_estimated;
+    j["residual_rms_K"] = r.residual_rms_k;
+    j["dof"] = r.dof;
+    j["seconds"] = secs;
+    for (size_t c = 0; c < cols.size(); ++c) j["residual_rms_per_channel_K"][cols[c]] = r.residual_rms_per_channel_k(c);
+    j["step_start_s"] = r.piece_start_s;
+    j["sources"] = nlohmann::json::array();
+    for (int s = 0; s < m; ++s) {
+      nlohmann::json js;
+      js["node"] = model.network.nodes[p.source_nodes[s]].name;
+      std::vector<double> v(r.heat_w.rows()), sg(r.heat_w.rows());
+      for (int i = 0; i < r.heat_w.rows(); ++i) { v[i] = r.heat_w(i, s); sg[i] = r.heat_sigma_w(i, s); }
+      js["heat_W"] = v;
+      js["sigma_W"] = sg;
+      j["sources"].push_back(js);
+    }
+    j["scan"] = nlohmann::json::array();
+    for (const auto& s : r.scan) j["scan"].push_back({{"alpha", s.alpha}, {"rss_K2", s.rss_k2}, {"seminorm_W2", s.seminorm_w2}, {"dof", s.dof}, {"gcv", s.gcv}});
+    if (!a.out_dir.empty()) j["out_dir"] = a.out_dir;
+    print_json(j);
+    return;
+  }
+  std::cout << fmt::format("Inverse heat sources: {} on {} ({} steps of {:g} s)\n", a.recording, model.network.name,
+                           r.heat_w.rows(), a.step_s);
+  std::cout << fmt::format("  method {} ({}), alpha = {:.4g} K^2/W^2 chosen by {}{}\n", a.method,
+                           a.scheme == "cn" ? "Crank-Nicolson" : "exact ZOH", r.alpha, r.rule,
+                           r.monte_carlo_evaluations ? fmt::format(" ({} evaluations)", r.monte_carlo_evaluations) : "");
+  std::cout << fmt::format("  noise sigma {:.4g} K{}, residual rms {:.4g} K, effective parameters {:.1f}\n", r.noise_sigma_k,
+                           r.noise_estimated ? " (estimated from the data)" : "", r.residual_rms_k, r.dof);
+  for (size_t c = 0; c < cols.size(); ++c) std::cout << fmt::format("  residual rms {:>8}: {:.4g} K\n", cols[c], r.residual_rms_per_channel_k(c));
+  std::cout << fmt::format("  {:<16} {:>10} {:>10} {:>10} {:>12}\n", "node", "mean [W]", "min [W]", "max [W]", "mean 1σ [W]");
+  for (int s = 0; s < m; ++s)
+    std::cout << fmt::format("  {:<16} {:>10.3f} {:>10.3f} {:>10.3f} {:>12.3f}\n", model.network.nodes[p.source_nodes[s]].name,
+                             r.heat_w.col(s).mean(), r.heat_w.col(s).minCoeff(), r.heat_w.col(s).maxCoeff(), r.heat_sigma_w.col(s).mean());
+  if (!a.out_dir.empty()) std::cout << "  written: " << a.out_dir << "/heat_sources.csv, heat_alpha_scan.csv, heat_sources.png/.svg\n";
+}
+
+}  // namespace
+
+void register_heat_command(CLI::App& app) {
+  auto args = std::make_shared<HeatArgs>();
+  CLI::App* cmd = app.add_subcommand(
+      "heat",
+      "Estimate time-varying heat sources from measured temperatures (inverse heat transfer, after Li et al. 2022).\n"
+      "The network's conductances and capacitances come from MODEL.json; the heat at the source nodes is\n"
+      "unknown, piecewise constant over --step seconds, and found by Tikhonov regularisation. The solver is a\n"
+      "Kalman/RTS smoother, so time and memory grow linearly with the recording length.");
+  cmd->add_option("model", args->model,
+                  "Model: fitted model JSON (network + parameter values), a network JSON whose parameters have values, "
+                  "or a preset name (spindle4)")->required();
+  cmd->add_option("recording", args->recording, "Recording CSV (time_s,speed_rpm,ambient_c,T...)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--step", args->step_s, "Sources are constant over steps of this length [s] (default 60)");
+  cmd->add_option("--method", args->method, "tikhonov0 (penalise |q|) or tikhonov1 (penalise changes of q; default)");
+  cmd->add_option("--alpha-rule", args->rule,
+                  "How alpha is chosen: gcv (default), lcurve, discrepancy (needs the noise level; estimated if not given), "
+                  "montecarlo (the paper's ICO random search, threshold tied to the noise level), fixed (--alpha)");
+  cmd->add_option("--alpha", args->alpha, "Regularisation parameter for --alpha-rule fixed [K^2/W^2]");
+  cmd->add_option("--alpha-range", [args](const std::vector<std::string>& v) {
+        if (v.size() != 2) return false;
+        args->alpha_min = std::stod(v[0]);
+        args->alpha_max = std::stod(v[1]);
+        return true;
+      }, "Search range MIN MAX of alpha [K^2/W^2] (default 1e-10 1e3)")->expected(2);
+  cmd->add_option("--alpha-points", args->alpha_points, "Grid points of the alpha scan (default 40)");
+  cmd->add_option("--noise", args->noise_k, "Measurement noise sigma [K] (default: estimated from the data)");
+  cmd->add_option("--scheme", args->scheme, "Time discretisation: cn (Crank-Nicolson, as in the paper; default) or exact (ZOH)");
+  cmd->add_option("--nodes", args->nodes, "Comma-separated node names receiving unknown heat (default: the network's source nodes)");
+  cmd->add_flag("--keep-model-sources", args->keep_model_sources,
+                "Keep the model's own heat sources and estimate only the heat it does not explain");
+  cmd->add_option("--out", args->out_dir, "Write heat_sources.csv, heat_alpha_scan.csv and heat_sources.png/.svg here");
+  cmd->add_flag("--json", args->json, "Print the result as JSON on stdout");
+  cmd->callback([args] { run_heat(*args); });
+}
+
+}  // namespace btsm::cli

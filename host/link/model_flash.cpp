@@ -1,0 +1,216 @@
+#include "host/link/model_flash.hpp"
+
+#include "common/crc.hpp"
+#include "common/hmac.hpp"
+#include "common/reduced_model.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <algorithm>
+#include <cctype>
+#include <filesystem>
+#include <fstream>
+#include <iterator>
+
+namespace btsm::link {
+
+using namespace btsm::wire;
+
+namespace {
+
+std::vector<uint8_t> read_file_bytes(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  if (!in) throw std::runtime_error("cannot open model file " + path);
+  return std::vector<uint8_t>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
+}
+
+std::vector<uint8_t> parse_hex_blob(const std::string& hex, const std::string& where) {
+  std::vector<uint8_t> out;
+  int hi = -1;
+  for (size_t i = 0; i < hex.size(); ++i) {
+    const char c = hex[i];
+    if (std::isspace(static_cast<unsigned char>(c))) continue;
+    int v = -1;
+    if (c >= '0' && c <= '9') v = c - '0';
+    else if (c >= 'a' && c <= 'f') v = c - 'a' + 10;
+    else if (c >= 'A' && c <= 'F') v = c - 'A' + 10;
+    if (v < 0) throw std::runtime_error(fmt::format("{}: blob hex has '{}' at character {}", where, c, i + 1));
+    if (hi < 0) {
+      hi = v;
+    } else {
+      out.push_back(static_cast<uint8_t>(hi * 16 + v));
+      hi = -1;
+    }
+  }
+  if (hi >= 0) throw std::runtime_error(where + ": blob hex has an odd number of digits");
+  return out;
+}
+
+// INFO.model_crc names the active blob: the CRC stored in the blob (reduced_model.hpp), which
+// some firmware builds may report as the CRC-32 over the whole blob instead; both identify it.
+bool info_crc_matches(uint32_t info_crc, std::span<const uint8_t> blob) {
+  if (blob.size() == kReducedModelBlobSize && info_crc == blob_stored_crc(blob.data())) return true;
+  return info_crc == crc32(blob.data(), blob.size());
+}
+
+}  // namespace
+
+std::vector<uint8_t> load_model_blob(const std::string& path) {
+  const auto bytes = read_file_bytes(path);
+  const bool json = std::filesystem::path(path).extension() == ".json" || (!bytes.empty() && bytes[0] == '{');
+  if (!json) return bytes;
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(bytes.begin(), bytes.end());
+  } catch (const std::exception& e) {
+    throw std::runtime_error(path + ": not valid JSON: " + e.what());
+  }
+  // The blob may sit at the top level or inside a "blob" / "model" object.
+  const nlohmann::json* node = &j;
+  for (const char* obj : {"blob", "model"})
+    if (j.contains(obj) && j[obj].is_object()) node = &j[obj];
+  for (const char* key : {"blob_hex", "hex", "blob"}) {
+    if (node->contains(key) && (*node)[key].is_string())
+      return parse_hex_blob((*node)[key].get<std::string>(), path + ": \"" + key + "\"");
+  }
+  for (const char* key : {"blob_file", "blob_path", "file", "path"}) {
+    if (node->contains(key) && (*node)[key].is_string()) {
+      std::filesystem::path p = (*node)[key].get<std::string>();
+      if (p.is_relative()) p = std::filesystem::path(path).parent_path() / p;
+      return read_file_bytes(p.string());
+    }
+  }
+  throw std::runtime_error(path + ": no model blob in this JSON (expected \"blob_hex\" with the blob as hex, "
+                                  "or \"blob_file\" naming the .bin written by `btsm reduce`)");
+}
+
+std::string check_model_blob(std::span<const uint8_t> blob) {
+  if (blob.size() != kReducedModelBlobSize)
+    return fmt::format("model blob is {} bytes, expected {}", blob.size(), kReducedModelBlobSize);
+  ReducedModel m;
+  const ModelCheck c = decode(blob.data(), blob.size(), m);
+  if (c.ok()) return {};
+  std::string where;
+  if (c.breakpoint != 0xFF) where = fmt::format(" (breakpoint {})", c.breakpoint);
+  else if (c.channel != 0xFF) where = fmt::format(" (channel {})", c.channel + 1);
+  return std::string(model_status_name(c.status)) + where;
+}
+
+std::array<uint8_t, 32> model_commit_tag(const DeviceKey& key, std::span<const uint8_t> nonce,
+                                         std::span<const uint8_t> blob) {
+  std::array<uint8_t, 32> tag{};
+  HmacSha256 mac;
+  mac.init(key.data(), key.size());
+  mac.update(nonce.data(), nonce.size());
+  mac.update(blob.data(), blob.size());
+  mac.final(tag.data());
+  return tag;
+}
+
+std::vector<uint8_t> read_model(Session& session, size_t len) {
+  std::vector<uint8_t> out;
+  out.reserve(len);
+  while (out.size() < len) {
+    const auto n = static_cast<uint8_t>(std::min<size_t>(kMaxModelData, len - out.size()));
+    const ModelData d = session.model_read(static_cast<uint16_t>(out.size()), n);
+    out.insert(out.end(), d.data, d.data + d.len);
+  }
+  return out;
+}
+
+FlashSummary flash_model(Session& session, std::span<const uint8_t> blob, const DeviceKey& key,
+                         const FlashOptions& opts) {
+  FlashSummary s;
+  s.blob_size = blob.size();
+  if (opts.validate_locally) {
+    const std::string why = check_model_blob(blob);
+    if (!why.empty()) throw std::runtime_error("model blob rejected before upload: " + why);
+  }
+  if (blob.empty() || blob.size() > kMaxModelBlobSize)
+    throw std::runtime_error(fmt::format("model blob of {} bytes: 1..{} bytes expected", blob.size(), kMaxModelBlobSize));
+  auto report = [&](size_t sent, const char* phase) {
+    if (opts.progress) opts.progress(FlashProgress{sent, blob.size(), phase});
+  };
+
+  const Info before = session.get_info();
+  s.device_id = before.device_id;
+  s.model_seq_before = before.model_seq;
+
+  const uint32_t crc = crc32(blob.data(), blob.size());
+  const AuthChallenge challenge = session.model_begin(static_cast<uint16_t>(blob.size()), crc);
+
+  // Upload. BAD_OFFSET carries the offset the module expects next: after a lost ACK it is
+  // already past our chunk; after lost chunk data it is behind. Either way continue there.
+  size_t offset = 0;
+  size_t resyncs_left = 16;
+  report(0, "upload");
+  while (offset < blob.size()) {
+    const uint8_t n = model_chunk_fit(session.next_seq(), static_cast<uint16_t>(offset), blob.data() + offset,
+                                      blob.size() - offset, session.chunk_frame_limit());
+    if (n == 0) throw std::logic_error("model chunk sizing failed");
+    uint8_t payload[kMaxPayload];
+    put_le16(payload, static_cast<uint16_t>(offset));
+    std::copy(blob.begin() + static_cast<long>(offset), blob.begin() + static_cast<long>(offset + n), payload + 2);
+    s.max_chunk_frame = std::max(s.max_chunk_frame,
+                                 encoded_frame_size(type_code(MsgType::ModelChunk), session.next_seq(), payload,
+                                                    static_cast<uint8_t>(n + 2)));
+    ++s.chunks;
+    try {
+      session.model_chunk(static_cast<uint16_t>(offset), blob.subspan(offset, n));
+    } catch (const NackError& e) {
+      if (e.code() != static_cast<uint8_t>(Nack::BadOffset) || resyncs_left == 0 || e.detail() > offset + n)
+        throw;
+      --resyncs_left;
+      ++s.offset_resyncs;
+      offset = e.detail();
+      continue;
+    }
+    offset += n;
+    report(offset, "upload");
+  }
+
+  report(blob.size(), "commit");
+  const auto tag = model_commit_tag(key, std::span<const uint8_t>(challenge.nonce, kNonceSize), blob);
+  int attempts = 0;
+  try {
+    ModelCommit c{};
+    std::copy(tag.begin(), tag.end(), c.hmac);
+    uint8_t p[kMaxPayload];
+    const uint8_t len = encode_model_commit(c, p);
+    session.request(MsgType::ModelCommit, std::span<const uint8_t>(p, len), std::nullopt, &attempts);
+  } catch (const NackError& e) {
+    // A retried commit whose first attempt was applied (ACK lost) is refused because the nonce
+    // is spent. INFO tells the truth: the new model is active exactly when its CRC and a new
+    // sequence number show up.
+    const bool maybe_applied = attempts > 1 && (e.code() == static_cast<uint8_t>(Nack::NoSession) ||
+                                                e.code() == static_cast<uint8_t>(Nack::AuthFailed));
+    if (!maybe_applied) throw;
+    const Info now = session.get_info();
+    if (!(now.model_seq != before.model_seq && info_crc_matches(now.model_crc, blob))) throw;
+    s.commit_confirmed_by_info = true;
+  }
+
+  report(0, "verify");
+  const auto back = read_model(session, blob.size());
+  if (!std::equal(back.begin(), back.end(), blob.begin(), blob.end()))
+    throw LinkError(LinkErrorKind::kProtocol,
+                    "read-back differs from the uploaded model although the module acknowledged the commit");
+  if (crc32(back.data(), back.size()) != crc)
+    throw LinkError(LinkErrorKind::kProtocol, "read-back CRC-32 mismatch");
+  const Info after = session.get_info();
+  s.model_crc = after.model_crc;
+  s.model_seq_after = after.model_seq;
+  if (!info_crc_matches(after.model_crc, blob) || after.model_seq == before.model_seq ||
+      after.model_state != static_cast<uint8_t>(ModelState::Active))
+    throw LinkError(LinkErrorKind::kProtocol,
+                    fmt::format("module INFO after commit: model_crc 0x{:08x} (expected 0x{:08x}), model_seq {} "
+                                "(before {}), state {}: the new model is not active",
+                                after.model_crc, blob.size() == kReducedModelBlobSize ? blob_stored_crc(blob.data()) : crc, after.model_seq, before.model_seq,
+                                after.model_state));
+  report(blob.size(), "verify");
+  s.verified = true;
+  return s;
+}
+
+}  // namespace btsm::link

@@ -1,0 +1,61 @@
+#pragma once
+// Model upload with authentication and read-back:
+//   GET_INFO (device id, current model) -> MODEL_BEGIN {len, crc32} -> AUTH_CHALLENGE {nonce}
+//   -> MODEL_CHUNKs sized so each encoded frame fits one 20-byte BLE write, each ACKed
+//   -> MODEL_COMMIT {HMAC-SHA256(key, nonce || blob)} -> MODEL_READ back, byte and CRC compare
+//   -> GET_INFO: model_crc and model_seq confirm the module runs the new model.
+// The module stages the blob and only switches to it after a valid commit (two-phase), so any
+// failure before the commit ACK leaves the previous model in place; this code says so.
+#include "host/link/device_keys.hpp"
+#include "host/link/session.hpp"
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace btsm::link {
+
+// Loads a model blob: a raw .bin, or the JSON of `btsm reduce` holding the blob as hex
+// ("blob_hex" or "blob") or a path to it ("blob_file"/"blob_path", relative to the JSON).
+// Throws std::runtime_error naming the file and what is wrong.
+std::vector<uint8_t> load_model_blob(const std::string& path);
+
+// Checks the blob like the firmware will (length, CRC, magic, version, values); returns an
+// empty string when valid, else the reason.
+std::string check_model_blob(std::span<const uint8_t> blob);
+
+struct FlashProgress {
+  size_t bytes_sent = 0, total = 0;
+  const char* phase = "";  // "upload", "commit", "verify"
+};
+
+struct FlashOptions {
+  bool validate_locally = true;  // refuse an invalid blob before talking to the module
+  std::function<void(const FlashProgress&)> progress;
+};
+
+struct FlashSummary {
+  uint32_t device_id = 0;
+  size_t blob_size = 0;
+  size_t chunks = 0;            // MODEL_CHUNK frames sent (incl. resends after BAD_OFFSET)
+  size_t max_chunk_frame = 0;   // largest encoded chunk frame, bytes (<= 20)
+  size_t offset_resyncs = 0;    // BAD_OFFSET answers that moved us to the module's offset
+  bool commit_confirmed_by_info = false;  // commit ACK was lost, INFO proved success
+  uint32_t model_crc = 0;       // INFO after the commit
+  uint32_t model_seq_before = 0, model_seq_after = 0;
+  bool verified = false;        // read-back identical and INFO matches
+};
+
+// Runs the whole upload; throws NackError (with the module's reason, the previous model kept)
+// or LinkError. `key` authenticates the commit.
+FlashSummary flash_model(Session& session, std::span<const uint8_t> blob, const DeviceKey& key,
+                         const FlashOptions& opts = {});
+
+// Reads `len` bytes of the active model back with MODEL_READ.
+std::vector<uint8_t> read_model(Session& session, size_t len);
+
+// HMAC-SHA256(key, nonce || blob) as the module computes it.
+std::array<uint8_t, 32> model_commit_tag(const DeviceKey& key, std::span<const uint8_t> nonce,
+                                         std::span<const uint8_t> blob);
+
+}  // namespace btsm::link

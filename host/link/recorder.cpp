@@ -1,0 +1,232 @@
+#include "host/link/recorder.hpp"
+
+#include "host/thermal/recording.hpp"
+
+#include <fmt/format.h>
+
+#include <cmath>
+#include <fstream>
+#include <thread>
+
+namespace btsm::link {
+
+using namespace btsm::wire;
+
+int ChannelRoles::ambient_index() const {
+  for (int i = 0; i < kChannels; ++i)
+    if (role[i] == static_cast<uint8_t>(ChannelRole::Ambient)) return i;
+  return -1;
+}
+
+std::string ChannelRoles::describe() const {
+  std::string s;
+  for (int i = 0; i < kChannels; ++i) {
+    const char* n = channel_role_name(role[i]);
+    s += fmt::format("{}T{}={}", i ? "," : "", i + 1, n ? n : "unknown");
+  }
+  return s + (from_module ? "" : " (firmware defaults, not read from the module)");
+}
+
+ChannelRoles read_channel_roles(Session& session) {
+  ChannelRoles r;
+  for (uint8_t i = 0; i < kChannels; ++i) r.role[i] = static_cast<uint8_t>(default_channel_role(i));
+  try {
+    for (uint8_t i = 0; i < kChannels; ++i)
+      r.role[i] = static_cast<uint8_t>(session.get_config(channel_role_key(i)).value);
+    r.from_module = true;
+  } catch (const NackError& e) {
+    if (e.code() != static_cast<uint8_t>(Nack::UnknownType)) throw;  // firmware without GET_CONFIG
+    for (uint8_t i = 0; i < kChannels; ++i) r.role[i] = static_cast<uint8_t>(default_channel_role(i));
+  }
+  return r;
+}
+
+double mk_to_c(int32_t mk) { return mk == kMissing ? std::nan("") : mk / 1000.0; }
+
+std::string firmware_version(const Info& info) {
+  return fmt::format("{}.{}.{}", info.fw_major, info.fw_minor, info.fw_patch);
+}
+
+ModuleIdentity identify(Session& session) {
+  ModuleIdentity id;
+  id.info = session.get_info();
+  id.roles = read_channel_roles(session);
+  id.link = session.transport().describe();
+  return id;
+}
+
+std::optional<SampleEvent> next_sample_with_reconnect(Session& session, Millis timeout, double reconnect_s,
+                                                      uint64_t& reconnects, const std::atomic<bool>* stop) {
+  try {
+    return session.next_sample(timeout);
+  } catch (const LinkError& e) {
+    if (e.kind() != LinkErrorKind::kDeviceGone || reconnect_s <= 0) throw;
+    const auto give_up = std::chrono::steady_clock::now() + std::chrono::duration<double>(reconnect_s);
+    std::string last = e.what();
+    while (std::chrono::steady_clock::now() < give_up) {
+      if (stop && stop->load()) return std::nullopt;
+      std::this_thread::sleep_for(Millis(500));
+      try {
+        session.transport().reopen();
+        session.resync();
+        ++reconnects;
+        return std::nullopt;  // the caller loops; the tracker reports what was lost meanwhile
+      } catch (const LinkError& again) {
+        last = again.what();
+      }
+    }
+    throw LinkError(LinkErrorKind::kDeviceGone,
+                    fmt::format("link lost and not back within {:.0f} s: {}", reconnect_s, last));
+  }
+}
+
+RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOptions& opts) {
+  RecordSummary sum;
+  const int amb = id.roles.ambient_index();
+  if (amb < 0)
+    throw std::runtime_error("no channel has the ambient role, so ambient_c cannot be recorded: set one with "
+                             "`btsm set-config channel_role_N ambient`");
+  std::vector<int> columns;
+  std::vector<std::string> names;
+  for (int i = 0; i < kChannels; ++i) {
+    if (i == amb || id.roles.role[i] == static_cast<uint8_t>(ChannelRole::Disabled)) continue;
+    columns.push_back(i);
+    names.push_back(fmt::format("T{}", i + 1));
+  }
+
+  thermal::RecordingWriter w;
+  w.open(opts.out_path, names);
+  w.write_meta("source", opts.source_label);
+  w.write_meta("module_id", fmt::format("{:08x}", id.info.device_id));
+  w.write_meta("firmware_version", firmware_version(id.info));
+  w.write_meta("protocol_version", std::to_string(id.info.protocol_version));
+  w.write_meta("link", id.link);
+  w.write_meta("channel_roles", id.roles.describe());
+  w.write_meta("ambient_channel", fmt::format("T{}", amb + 1));
+  w.write_meta("model_crc", fmt::format("{:08x}", id.info.model_crc));
+  w.write_meta("time_base", "module time_ms since the first sample, s");
+
+  const double period_guess_s = 5.0;
+  const double sample_timeout_s = opts.sample_timeout_s > 0 ? opts.sample_timeout_s : 3 * period_guess_s + 10;
+  const auto t0 = std::chrono::steady_clock::now();
+  std::optional<uint32_t> last_ms;
+  double epoch_base_s = 0, last_time_s = -1;
+  uint64_t epoch_ms = 0;
+  auto last_rx = std::chrono::steady_clock::now();
+  auto last_host = last_rx;
+  double last_ambient = std::nan("");
+
+  for (;;) {
+    if (opts.stop && opts.stop->load()) {
+      sum.stop_reason = "interrupted";
+      break;
+    }
+    if (opts.max_samples && sum.rows >= opts.max_samples) {
+      sum.stop_reason = "sample count reached";
+      break;
+    }
+    if (opts.duration_s > 0 && last_time_s >= opts.duration_s) {
+      sum.stop_reason = "duration reached";
+      break;
+    }
+    auto ev = next_sample_with_reconnect(session, Millis(250), opts.reconnect_s, sum.reconnects, opts.stop);
+    const auto now = std::chrono::steady_clock::now();
+    if (!ev) {
+      if (std::chrono::duration<double>(now - last_rx).count() > sample_timeout_s)
+        throw LinkError(LinkErrorKind::kTimeout,
+                        fmt::format("{}: no sample for {:.0f} s (module stopped sending?)",
+                                    session.transport().describe(), sample_timeout_s));
+      continue;
+    }
+    last_rx = now;
+    const Sample& s = ev->sample;
+    // Module time, unwrapped across the u32 wrap by summing per-sample differences in integer
+    // ms; a restart starts a new epoch placed after the last row by the host clock.
+    if (!last_ms) {
+      epoch_base_s = 0;
+      epoch_ms = 0;
+    } else if (ev->restarted) {
+      ++sum.restarts;
+      epoch_base_s = last_time_s + std::max(0.001, std::chrono::duration<double>(now - last_host).count());
+      epoch_ms = 0;
+    } else {
+      epoch_ms += static_cast<uint32_t>(s.time_ms - *last_ms);
+    }
+    last_ms = s.time_ms;
+    last_host = now;
+    const double time_s = epoch_base_s + static_cast<double>(epoch_ms) / 1000.0;
+    if (ev->gap) sum.gaps.push_back(*ev->gap);
+
+    double ambient = mk_to_c(s.temp_mK[amb]);
+    if (std::isnan(ambient)) {
+      if (std::isnan(last_ambient)) {
+        ++sum.rows_without_ambient;
+        continue;
+      }
+      ambient = last_ambient;
+      ++sum.ambient_held_rows;
+    }
+    last_ambient = ambient;
+    if (time_s <= last_time_s) continue;  // never write non-increasing time (duplicate timestamp)
+    std::vector<double> temps;
+    for (int c : columns) temps.push_back(mk_to_c(s.temp_mK[c]));
+    w.append(time_s, s.speed_rpm, ambient, temps);
+    last_time_s = time_s;
+    ++sum.rows;
+    if (opts.progress) {
+      RecordProgress p;
+      p.rows = sum.rows;
+      p.lost = session.tracker().lost();
+      p.restarts = sum.restarts;
+      p.elapsed_s = std::chrono::duration<double>(now - t0).count();
+      p.last = &s;
+      opts.progress(p);
+    }
+  }
+  sum.lost = session.tracker().lost();
+  sum.invalid_frames = session.frame_counters().frame_errors() + session.invalid_payloads();
+  w.flush();
+  w.close();
+  // RecordingWriter takes metadata only before the first row, and gaps are only known as they
+  // happen, so the summary goes after the rows as comment lines (the reader accepts '#' lines
+  // anywhere).
+  std::ofstream tail(opts.out_path, std::ios::app);
+  tail << "# samples: " << sum.rows << "\n";
+  tail << "# lost_samples: " << sum.lost << "\n";
+  tail << "# module_restarts: " << sum.restarts << "\n";
+  tail << "# link_reconnects: " << sum.reconnects << "\n";
+  tail << "# rejected_frames: " << sum.invalid_frames << "\n";
+  if (sum.ambient_held_rows) tail << "# ambient_held_rows: " << sum.ambient_held_rows << "\n";
+  if (sum.rows_without_ambient) tail << "# rows_without_ambient: " << sum.rows_without_ambient << "\n";
+  for (const auto& g : sum.gaps) tail << "# dropped: " << g.first << "-" << g.last << "\n";
+  tail << "# stop_reason: " << sum.stop_reason << "\n";
+  if (!tail) throw std::runtime_error("cannot append the summary to " + opts.out_path);
+  return sum;
+}
+
+std::string format_sample_line(const Sample& s, const ChannelRoles& roles) {
+  std::string line = fmt::format("#{:<7} {:>5} rpm ", s.sample_index, s.speed_rpm);
+  for (int i = 0; i < kChannels; ++i) {
+    if (roles.role[i] == static_cast<uint8_t>(ChannelRole::Disabled)) continue;
+    const double t = mk_to_c(s.temp_mK[i]);
+    const double p = mk_to_c(s.predicted_mK[i]);
+    line += fmt::format("| T{} ", i + 1);
+    line += std::isnan(t) ? std::string("   --   ") : fmt::format("{:7.3f}", t);
+    if (!std::isnan(p)) line += fmt::format(" (pred {:7.3f})", p);
+    const uint8_t st = s.channel_status[i];
+    if ((st & kStatusStateMask) != 0 || (st & ~kStatusStateMask) != 0) {
+      line += std::string(" ") + diag_state_name(st);
+      if (st & kFaultOpen) line += "/open";
+      if (st & kFaultShort) line += "/short";
+      if (st & kFaultAdc) line += "/adc";
+      if (st & kFaultReference) line += "/ref";
+    }
+    line += " ";
+  }
+  line += fmt::format("| {}", diag_state_name(s.overall));
+  if (s.overall & kOverallAlarmLatched) line += " LATCHED";
+  if (s.overall & kOverallModelActive) line += " model";
+  return line;
+}
+
+}  // namespace btsm::link

@@ -1,0 +1,231 @@
+// Diagnosis state machine: one test per transition of the diagram in common/diagnosis.hpp, plus
+// persistence, hysteresis, the overall ranking and the rise-rate helper.
+#include "common/diagnosis.hpp"
+
+#include <gtest/gtest.h>
+
+namespace btsm {
+namespace {
+
+// Limits: warn 1.5 K, alarm 4 K residual; exit at 80 %: 1.2 K / 3.2 K; absolute 80 degC (exit 79);
+// rise 3 K/min (exit 2.4). N = 3, Mw = 3, Ma = 5, Mf = 2.
+struct DiagTransition : ::testing::Test {
+  DiagChannelLimits lim;
+  DiagTiming t;
+  DiagChannel ch;
+  DiagTransition() {
+    lim.warn_band_mK = 1500;
+    lim.alarm_band_mK = 4000;
+    lim.abs_limit_mK = 80000;
+    lim.max_rise_mK_per_min = 3000;
+    t.enter_samples = 3;
+    t.warn_clear_samples = 3;
+    t.alarm_clear_samples = 5;
+    t.fault_clear_samples = 2;
+    t.hysteresis_permille = 200;
+    t.abs_hysteresis_mK = 1000;
+  }
+  static DiagInput residual(int32_t r_mK, int32_t measured = 40000) {
+    DiagInput in;
+    in.measured_mK = measured;
+    in.predicted_mK = measured - r_mK;
+    in.rise_mK_per_min = 0;
+    return in;
+  }
+  static DiagInput fault() {
+    DiagInput in;
+    in.fault = true;
+    return in;
+  }
+  DiagState feed(const DiagInput& in, int n = 1) {
+    DiagState s = ch.state();
+    for (int i = 0; i < n; ++i) s = ch.update(in, lim, t);
+    return s;
+  }
+  void drive_to_alarm() {
+    feed(residual(5000), 3);
+    ASSERT_EQ(ch.state(), DiagState::kAlarm);
+  }
+};
+
+TEST_F(DiagTransition, NormalToWarnNeedsNConsecutiveSamples) {
+  EXPECT_EQ(feed(residual(2000), 2), DiagState::kNormal);
+  EXPECT_EQ(feed(residual(0)), DiagState::kNormal);  // run broken: persistence restarts
+  EXPECT_EQ(feed(residual(-2000), 2), DiagState::kNormal);
+  EXPECT_EQ(feed(residual(-2000)), DiagState::kWarn);  // |residual| counts, either sign
+  EXPECT_TRUE(ch.reasons() & kReasonResidualWarn);
+}
+
+TEST_F(DiagTransition, NormalToAlarmOnResidual) {
+  EXPECT_EQ(feed(residual(4500), 2), DiagState::kNormal);  // alarm and warn runs both at 2 < N
+  EXPECT_EQ(feed(residual(4500)), DiagState::kAlarm);
+  EXPECT_TRUE(ch.alarm_latched());
+  EXPECT_TRUE(ch.reasons() & kReasonResidualAlarm);
+}
+
+TEST_F(DiagTransition, NormalToAlarmOnAbsoluteLimitEvenWithoutModel) {
+  DiagInput in;
+  in.measured_mK = 80001;  // no prediction: residual checks skipped, the limit still applies
+  EXPECT_EQ(feed(in, 2), DiagState::kNormal);
+  EXPECT_EQ(feed(in), DiagState::kAlarm);
+  EXPECT_TRUE(ch.reasons() & kReasonAbsLimit);
+  EXPECT_TRUE(ch.reasons() & kReasonNoPrediction);
+}
+
+TEST_F(DiagTransition, NormalToAlarmOnRateOfRise) {
+  DiagInput in = residual(0);
+  in.rise_mK_per_min = 3001;
+  EXPECT_EQ(feed(in, 3), DiagState::kAlarm);
+  EXPECT_TRUE(ch.reasons() & kReasonRise);
+  DiagChannel other;
+  lim.max_rise_mK_per_min = 0;  // disabled
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(other.update(in, lim, t), DiagState::kNormal);
+}
+
+TEST_F(DiagTransition, WarnToNormalOnlyBelowTheExitThresholdForMwSamples) {
+  feed(residual(2000), 3);
+  ASSERT_EQ(ch.state(), DiagState::kWarn);
+  EXPECT_EQ(feed(residual(1300), 10), DiagState::kWarn);  // below entry, above exit (1.2 K)
+  EXPECT_EQ(feed(residual(1100), 2), DiagState::kWarn);
+  EXPECT_EQ(feed(residual(1300)), DiagState::kWarn);  // run broken
+  EXPECT_EQ(feed(residual(1200), 2), DiagState::kWarn);
+  EXPECT_EQ(feed(residual(1200)), DiagState::kNormal);
+}
+
+TEST_F(DiagTransition, WarnToAlarm) {
+  feed(residual(2000), 3);
+  ASSERT_EQ(ch.state(), DiagState::kWarn);
+  EXPECT_EQ(feed(residual(4100), 2), DiagState::kWarn);
+  EXPECT_EQ(feed(residual(4100)), DiagState::kAlarm);
+}
+
+TEST_F(DiagTransition, AlarmIsLatchedThenAutoClearsAfterMaNormalSamples) {
+  drive_to_alarm();
+  EXPECT_EQ(feed(residual(0), 4), DiagState::kAlarm);  // latched
+  EXPECT_EQ(feed(residual(2000)), DiagState::kAlarm);  // not normal: counter restarts
+  EXPECT_EQ(feed(residual(0), 4), DiagState::kAlarm);
+  EXPECT_EQ(feed(residual(0)), DiagState::kNormal);
+  EXPECT_FALSE(ch.alarm_latched());
+}
+
+TEST_F(DiagTransition, AlarmToNormalOnAcknowledgeWhenClear) {
+  drive_to_alarm();
+  feed(residual(0));
+  ch.acknowledge();
+  EXPECT_EQ(feed(residual(0)), DiagState::kNormal);
+}
+
+TEST_F(DiagTransition, AlarmToWarnOnAcknowledgeWithWarnConditionLeft) {
+  drive_to_alarm();
+  ch.acknowledge();
+  EXPECT_EQ(feed(residual(5000), 5), DiagState::kAlarm);  // still active: stays, acknowledged
+  EXPECT_TRUE(ch.reasons() & kReasonAcknowledged);
+  EXPECT_EQ(feed(residual(3300)), DiagState::kAlarm);  // above the alarm exit threshold 3.2 K
+  EXPECT_EQ(feed(residual(3100)), DiagState::kWarn);   // alarm clear, warn still present
+  EXPECT_FALSE(ch.alarm_latched());
+  // Re-entering ALARM needs N samples again.
+  EXPECT_EQ(feed(residual(5000), 2), DiagState::kWarn);
+  EXPECT_EQ(feed(residual(5000)), DiagState::kAlarm);
+}
+
+TEST_F(DiagTransition, AbsoluteLimitAlarmClearsOnlyBelowLimitMinusHysteresis) {
+  DiagInput in;
+  in.measured_mK = 81000;
+  feed(in, 3);
+  ASSERT_EQ(ch.state(), DiagState::kAlarm);
+  ch.acknowledge();
+  in.measured_mK = 79500;  // below the limit but inside the 1 K hysteresis
+  EXPECT_EQ(feed(in), DiagState::kAlarm);
+  in.measured_mK = 79000;
+  EXPECT_EQ(feed(in), DiagState::kNormal);
+}
+
+TEST_F(DiagTransition, AcknowledgeOutsideAlarmHasNoEffect) {
+  feed(residual(2000), 3);
+  ch.acknowledge();
+  EXPECT_EQ(feed(residual(5000), 3), DiagState::kAlarm);
+  EXPECT_FALSE(ch.reasons() & kReasonAcknowledged);
+  EXPECT_EQ(feed(residual(0)), DiagState::kAlarm);  // latched: the early ack did not pre-clear it
+}
+
+TEST_F(DiagTransition, AnyStateToSensorFaultAtOnce) {
+  EXPECT_EQ(feed(fault()), DiagState::kSensorFault);  // from NORMAL
+  ch.reset();
+  feed(residual(2000), 3);
+  EXPECT_EQ(feed(fault()), DiagState::kSensorFault);  // from WARN
+  ch.reset();
+  drive_to_alarm();
+  EXPECT_EQ(feed(fault()), DiagState::kSensorFault);  // from ALARM
+  EXPECT_TRUE(ch.reasons() & kReasonFault);
+  DiagInput missing = residual(0);
+  missing.measured_mK = kDiagNoValue;  // no reading at all counts as a fault
+  ch.reset();
+  EXPECT_EQ(feed(missing), DiagState::kSensorFault);
+}
+
+TEST_F(DiagTransition, SensorFaultToNormalAfterMfGoodSamples) {
+  feed(fault(), 4);
+  EXPECT_EQ(feed(residual(0)), DiagState::kSensorFault);
+  EXPECT_EQ(feed(fault()), DiagState::kSensorFault);  // run broken
+  EXPECT_EQ(feed(residual(0)), DiagState::kSensorFault);
+  EXPECT_EQ(feed(residual(0)), DiagState::kNormal);
+}
+
+TEST_F(DiagTransition, SensorFaultReturnsToALatchedAlarm) {
+  drive_to_alarm();
+  feed(fault(), 3);
+  EXPECT_EQ(feed(residual(0), 2), DiagState::kAlarm);  // the alarm was not acknowledged
+  EXPECT_TRUE(ch.alarm_latched());
+}
+
+TEST_F(DiagTransition, AlarmAcknowledgedDuringFaultClearsWithTheFault) {
+  drive_to_alarm();
+  feed(fault());
+  ch.acknowledge();
+  EXPECT_EQ(feed(residual(0), 2), DiagState::kNormal);
+}
+
+TEST(DiagnosisOverall, WorstStateRanksAlarmAboveFault) {
+  EXPECT_EQ(diag_worst(DiagState::kSensorFault, DiagState::kAlarm), DiagState::kAlarm);
+  EXPECT_EQ(diag_worst(DiagState::kAlarm, DiagState::kSensorFault), DiagState::kAlarm);
+  EXPECT_EQ(diag_worst(DiagState::kWarn, DiagState::kSensorFault), DiagState::kSensorFault);
+  EXPECT_EQ(diag_worst(DiagState::kNormal, DiagState::kWarn), DiagState::kWarn);
+  Diagnosis<5> d;
+  d.timing.enter_samples = 1;
+  d.enabled_mask = 0x0F;  // channel 4 disabled: its fault does not count
+  DiagInput in[5];
+  for (auto& i : in) i.measured_mK = 30000, i.predicted_mK = 30000, i.rise_mK_per_min = 0;
+  in[4].fault = true;
+  EXPECT_EQ(d.update(in), DiagState::kNormal);
+  in[1].fault = true;
+  EXPECT_EQ(d.update(in), DiagState::kSensorFault);
+  in[2].measured_mK = 36000;  // residual 6 K -> ALARM outranks the fault
+  EXPECT_EQ(d.update(in), DiagState::kAlarm);
+  EXPECT_EQ(d.channel(2).state(), DiagState::kAlarm);
+  in[2].measured_mK = 30000;
+  in[1].fault = false;
+  d.acknowledge_all();
+  d.update(in);
+  EXPECT_EQ(d.channel(2).state(), DiagState::kNormal);
+  EXPECT_EQ(d.overall(), DiagState::kSensorFault);  // channel 1 still clearing (Mf = 3)
+  d.update(in);
+  EXPECT_EQ(d.update(in), DiagState::kNormal);
+}
+
+TEST(RiseRate, MeasuresMilliKelvinPerMinuteOverTheWindow) {
+  RiseRate<13> r(5000);  // 12 intervals of 5 s = 1 min
+  int32_t out = 0;
+  for (int i = 0; i < 12; ++i) EXPECT_EQ(r.push(20000 + 250 * i), kDiagNoValue) << i;
+  out = r.push(20000 + 250 * 12);
+  EXPECT_EQ(out, 3000);  // 250 mK per 5 s
+  out = r.push(20000 + 250 * 13);
+  EXPECT_EQ(out, 3000);
+  r.reset();
+  EXPECT_EQ(r.push(0), kDiagNoValue);
+  RiseRate<2> fast(100);
+  fast.push(0);
+  EXPECT_EQ(fast.push(-10), -6000);
+}
+
+}  // namespace
+}  // namespace btsm

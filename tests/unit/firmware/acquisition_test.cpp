@@ -1,0 +1,174 @@
+// Acquisition state machine (calibration, sweeps, every fault) against the AD7794 model on the
+// native board.
+#include <gtest/gtest.h>
+
+#include "firmware/acquisition.hpp"
+#include "test_support.hpp"
+
+namespace btsm {
+namespace {
+
+using Spi = sim::NativeBoard::Spi;
+
+struct AcqFixture : ::testing::Test {
+  sim::NativeBoard board;
+  Acquisition<Spi> acq{board.spi};
+
+  void SetUp() override {
+    const double temps[5] = {20.0, 35.5, 42.0, 22.0, 60.0};
+    for (int j = 0; j < 5; ++j) board.front_end().probe_ohm[j] = test::pt1000_ohm(temps[j]);
+    acq.configure(AcquisitionSetup());
+  }
+
+  // Polls and advances simulated time until a sweep is ready (or the limit passes).
+  bool sweep(double limit_s = 10.0) {
+    acq.request_sweep();
+    const uint64_t end = board.now_us() + static_cast<uint64_t>(limit_s * 1e6);
+    while (board.now_us() < end) {
+      const uint32_t budget = acq.poll(board.clock.millis());
+      if (acq.sweep_ready()) {
+        acq.take_sweep();
+        return true;
+      }
+      if (budget == 0) continue;
+      board.advance_to_next_event(std::min<uint64_t>(budget, 1000) * 1000);
+    }
+    return false;
+  }
+};
+
+TEST_F(AcqFixture, CalibratesEveryChannelAndMeasuresTheResistances) {
+  ASSERT_TRUE(sweep());
+  EXPECT_TRUE(acq.calibrated());
+  EXPECT_EQ(acq.chip(), AdcChip::kAd7794);
+  for (uint8_t j = 0; j < 5; ++j) {
+    const ChannelReading& r = acq.reading(j);
+    EXPECT_EQ(r.faults, 0) << "channel " << int(j);
+    EXPECT_NEAR(r.r_ohm, board.front_end().probe_ohm[j], 0.01) << "channel " << int(j);
+  }
+  // AIN4 and AIN5 share one pair on the chip but keep their own coefficients in RAM.
+  EXPECT_NE(acq.calibration(3).offset, acq.calibration(4).offset);
+  EXPECT_EQ(board.adc().counters().ignored_cal_writes, 0u);
+  EXPECT_EQ(acq.counters().inits, 1u);
+}
+
+TEST_F(AcqFixture, SharedCalibrationPairIsRestoredOnChannelSwitch) {
+  ASSERT_TRUE(sweep());
+  // The last channel converted was AIN5: its pair is loaded. The next sweep converts AIN4 with
+  // its own coefficients again, so both stay accurate sweep after sweep.
+  for (int k = 0; k < 3; ++k) {
+    ASSERT_TRUE(sweep());
+    EXPECT_NEAR(acq.reading(3).r_ohm, board.front_end().probe_ohm[3], 0.01);
+    EXPECT_NEAR(acq.reading(4).r_ohm, board.front_end().probe_ohm[4], 0.01);
+  }
+  // Control: converting AIN4 with AIN5's coefficients would be visibly wrong (offset errors
+  // -5 uV vs +1.5 uV in the model = 0.03 ohm).
+  const double wrong = (static_cast<double>(acq.calibration(4).offset) - acq.calibration(3).offset) /
+                       16777216.0 * 6800.0 / 4.0;
+  EXPECT_GT(std::abs(wrong), 0.02);
+}
+
+TEST_F(AcqFixture, SweepTakesTheConversionAndBurnoutTimes) {
+  ASSERT_TRUE(sweep());  // includes calibration
+  const uint64_t t0 = board.now_us();
+  ASSERT_TRUE(sweep());
+  const double dt = (board.now_us() - t0) * 1e-6;
+  // 5 x (120 ms conversion + 4 ms burnout + oscillator starts); never more than 1 s.
+  EXPECT_GT(dt, 0.6);
+  EXPECT_LT(dt, 1.0);
+}
+
+TEST_F(AcqFixture, OpenSenseLeadIsFoundByTheBurnoutCheckOnly) {
+  ASSERT_TRUE(sweep());
+  board.front_end().probe_fault[1] = sim::ProbeFault::kOpenSense;
+  ASSERT_TRUE(sweep());
+  EXPECT_EQ(acq.reading(1).faults, wire::kFaultOpen);
+  for (uint8_t j : {0, 2, 3, 4}) EXPECT_EQ(acq.reading(j).faults, 0) << int(j);
+  board.front_end().probe_fault[1] = sim::ProbeFault::kNone;
+  ASSERT_TRUE(sweep());
+  EXPECT_EQ(acq.reading(1).faults, 0);
+}
+
+TEST_F(AcqFixture, ShortedProbe) {
+  ASSERT_TRUE(sweep());
+  board.front_end().probe_fault[2] = sim::ProbeFault::kShort;
+  ASSERT_TRUE(sweep());
+  EXPECT_EQ(acq.reading(2).faults, wire::kFaultShort);
+  for (uint8_t j : {0, 1, 3, 4}) EXPECT_EQ(acq.reading(j).faults, 0) << int(j);
+}
+
+TEST_F(AcqFixture, BrokenElementBreaksTheChainAndEveryChannelLosesItsReference) {
+  ASSERT_TRUE(sweep());
+  board.front_end().probe_fault[0] = sim::ProbeFault::kOpenElement;
+  ASSERT_TRUE(sweep());
+  for (uint8_t j = 0; j < 5; ++j) EXPECT_EQ(acq.reading(j).faults & wire::kFaultReference, wire::kFaultReference);
+}
+
+TEST_F(AcqFixture, LostReference) {
+  ASSERT_TRUE(sweep());
+  board.front_end().reference_lost = true;
+  ASSERT_TRUE(sweep());
+  for (uint8_t j = 0; j < 5; ++j) EXPECT_EQ(acq.reading(j).faults, wire::kFaultReference) << int(j);
+  board.front_end().reference_lost = false;
+  ASSERT_TRUE(sweep());
+  for (uint8_t j = 0; j < 5; ++j) EXPECT_EQ(acq.reading(j).faults, 0) << int(j);
+}
+
+TEST_F(AcqFixture, MissingAdcAtStartAndDuringOperation) {
+  board.front_end().chip_missing = true;
+  ASSERT_TRUE(sweep());
+  for (uint8_t j = 0; j < 5; ++j) EXPECT_EQ(acq.reading(j).faults, wire::kFaultAdc);
+  EXPECT_EQ(acq.chip(), AdcChip::kNone);
+  EXPECT_GE(acq.counters().missing, 1u);
+  // While it is missing every requested sweep is answered at once with ADC faults; the chip is
+  // looked for again once a second.
+  board.front_end().chip_missing = false;
+  board.advance_us(1'100'000);
+  ASSERT_TRUE(sweep());
+  ASSERT_TRUE(sweep());
+  for (uint8_t j = 0; j < 5; ++j) EXPECT_EQ(acq.reading(j).faults, 0);
+  // Vanishes while a conversion runs: RDY never comes, the conversion times out.
+  acq.request_sweep();
+  for (int i = 0; i < 3; ++i) acq.poll(board.clock.millis());
+  board.front_end().chip_missing = true;
+  ASSERT_TRUE(sweep());
+  for (uint8_t j = 0; j < 5; ++j) EXPECT_EQ(acq.reading(j).faults, wire::kFaultAdc);
+  EXPECT_EQ(acq.counters().adc_timeouts, 1u);
+  // Vanishes between sweeps: the register read-back sees all ones.
+  board.front_end().chip_missing = false;
+  board.advance_us(1'100'000);
+  ASSERT_TRUE(sweep());
+  ASSERT_TRUE(sweep());
+  const uint16_t missing_before = acq.counters().missing;
+  board.front_end().chip_missing = true;
+  ASSERT_TRUE(sweep());
+  for (uint8_t j = 0; j < 5; ++j) EXPECT_EQ(acq.reading(j).faults, wire::kFaultAdc);
+  EXPECT_GT(acq.counters().missing, missing_before);
+}
+
+TEST_F(AcqFixture, SilentResetIsDetectedByReadBackCountedAndRepaired) {
+  ASSERT_TRUE(sweep());
+  board.adc().inject_silent_reset();
+  ASSERT_TRUE(sweep());
+  EXPECT_EQ(acq.counters().silent_resets, 1u);
+  EXPECT_EQ(acq.counters().inits, 2u);
+  for (uint8_t j = 0; j < 5; ++j) {
+    EXPECT_EQ(acq.reading(j).faults, 0);
+    EXPECT_NEAR(acq.reading(j).r_ohm, board.front_end().probe_ohm[j], 0.01);
+  }
+}
+
+TEST_F(AcqFixture, DisabledChannelsAreNotConverted) {
+  AcquisitionSetup s;
+  s.enabled_mask = 0x0B;  // ch1, ch2, ch4
+  acq.configure(s);
+  const uint64_t before = board.adc().counters().conversions;
+  ASSERT_TRUE(sweep());
+  ASSERT_TRUE(sweep());
+  // 3 channels x (measurement + burnout) x 2 sweeps.
+  EXPECT_EQ(board.adc().counters().conversions - before, 12u);
+  EXPECT_NEAR(acq.reading(3).r_ohm, board.front_end().probe_ohm[3], 0.01);
+}
+
+}  // namespace
+}  // namespace btsm
