@@ -243,7 +243,7 @@ class Acquisition {
     return last;
   }
 
-  void begin_wait(uint8_t mode, uint8_t fs, uint32_t now_ms, uint16_t expected_ms) {
+  BTSM_NOINLINE void begin_wait(uint8_t mode, uint8_t fs, uint32_t now_ms, uint16_t expected_ms) {
     adc_.start(mode, fs);
     mark_ = now_ms;
     // Generous: twice the datasheet time plus the 1 ms oscillator start and tick jitter.
@@ -263,7 +263,7 @@ class Acquisition {
   }
 
   // Marks every channel of the current (or next requested) sweep as failed and publishes it.
-  void fail_sweep(uint8_t fault) {
+  BTSM_NOINLINE void fail_sweep(uint8_t fault) {
     for (uint8_t i = 0; i < kChannels; ++i) {
       readings_[i].faults = fault;
       readings_[i].code = 0;
@@ -276,7 +276,7 @@ class Acquisition {
     }
   }
 
-  void evaluate(uint8_t ch, uint8_t status, uint32_t code) {
+  BTSM_NOINLINE void evaluate(uint8_t ch, uint8_t status, uint32_t code) {
     ChannelReading& r = readings_[ch];
     r.code = code;
     uint8_t faults = 0;

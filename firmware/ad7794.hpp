@@ -53,14 +53,14 @@ class Ad7794 {
   uint16_t read16(uint8_t reg) { return static_cast<uint16_t>(read(reg, 2)); }
   uint32_t read24(uint8_t reg) { return read(reg, 3); }
 
-  uint32_t read(uint8_t reg, uint8_t width) {
+  BTSM_NOINLINE uint32_t read(uint8_t reg, uint8_t width) {
     spi_.select();
     const uint32_t v = read_selected(reg, width);
     spi_.deselect();
     return v;
   }
 
-  void write(uint8_t reg, uint32_t value, uint8_t width) {
+  BTSM_NOINLINE void write(uint8_t reg, uint32_t value, uint8_t width) {
     spi_.select();
     write_selected(reg, value, width);
     spi_.deselect();
@@ -68,7 +68,7 @@ class Ad7794 {
 
   // Writes the channel setup and its calibration pair, with the chip in idle (offset/full-scale
   // writes are ignored in any other mode). Leaves CS high.
-  void prepare_channel(uint16_t config, uint8_t fs, const AdcCalibration* cal) {
+  BTSM_NOINLINE void prepare_channel(uint16_t config, uint8_t fs, const AdcCalibration* cal) {
     spi_.select();
     write_selected(ad7794::kRegMode, ad7794::mode_word(ad7794::kModeIdle, fs), 2);
     write_selected(ad7794::kRegConfig, config, 2);
@@ -81,7 +81,7 @@ class Ad7794 {
 
   // Writes the mode register (single conversion or a calibration) and keeps CS low so DOUT/RDY
   // reports completion through ready().
-  void start(uint8_t mode, uint8_t fs) {
+  BTSM_NOINLINE void start(uint8_t mode, uint8_t fs) {
     spi_.select();
     write_selected(ad7794::kRegMode, ad7794::mode_word(mode, fs), 2);
   }
@@ -107,14 +107,14 @@ class Ad7794 {
   }
 
  private:
-  uint32_t read_selected(uint8_t reg, uint8_t width) {
+  BTSM_NOINLINE uint32_t read_selected(uint8_t reg, uint8_t width) {
     spi_.transfer(ad7794::comm_read(reg));
     uint32_t v = 0;
     for (uint8_t i = 0; i < width; ++i) v = (v << 8) | spi_.transfer(0x00);
     return v;
   }
 
-  void write_selected(uint8_t reg, uint32_t value, uint8_t width) {
+  BTSM_NOINLINE void write_selected(uint8_t reg, uint32_t value, uint8_t width) {
     spi_.transfer(ad7794::comm_write(reg));
     for (uint8_t i = width; i > 0; --i) spi_.transfer(static_cast<uint8_t>(value >> (8 * (i - 1))));
   }

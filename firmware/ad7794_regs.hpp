@@ -7,6 +7,8 @@
 
 #include <stdint.h>
 
+#include "firmware/compiler.hpp"
+
 namespace btsm {
 
 struct ad7794 {

@@ -17,6 +17,7 @@
 #include "common/wire_frame.hpp"
 #include "common/wire_messages.hpp"
 #include "firmware/acquisition.hpp"
+#include "firmware/compiler.hpp"
 #include "firmware/config.hpp"
 #include "firmware/device_key.hpp"
 #include "firmware/diagnosis_stage.hpp"
@@ -39,17 +40,22 @@ class App {
   static constexpr uint8_t kChannels = wire::kChannels;
 
   explicit App(Board& board)
-      : board_(board), acq_(board.spi), store_(board.storage), writer_(board.storage) {}
+      : board_(board), acq_(board.spi), store_(board.storage) {}
 
   void init() {
     board_.watchdog.enable();
+    for (uint8_t j = 0; j < kChannels; ++j) {
+      temp_mK_[j] = wire::kMissing;
+      predicted_mK_[j] = wire::kMissing;
+      status_[j] = 0;
+    }
     uint8_t rec[config_record::kSize];
     for (uint8_t i = 0; i < config_record::kSize; ++i)
       rec[i] = board_.storage.read(static_cast<uint16_t>(eeprom_layout::kConfigAddr + i));
     config_.set_defaults();
     config_record::decode(rec, config_);  // keeps defaults when missing or corrupt
     load_and_bump_counters();
-    store_.boot(model_);
+    store_.boot(model_);  // model_ = ModelRuntime (schedule + limits), coefficients stay in EEPROM
     model_state_.x_q20 = 0;
     model_initialised_ = false;
     board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
@@ -65,16 +71,20 @@ class App {
     const uint32_t now = board_.clock.millis();
     uint32_t budget = 0xFFFFFFFFUL;
 
-    // EEPROM work: the model store's writes first (an ACK waits for them), then config/counters.
+    // EEPROM work (model chunks/commit, configuration, counters): an ACK may wait for it.
     if (store_.busy()) {
       if (store_.step() && !store_.busy()) on_store_writes_done();
-      budget = 1;
-    } else if (writer_.busy()) {
-      if (writer_.step() && !writer_.busy() && ack_after_write_) send_deferred_ack();
       budget = 1;
     }
 
     flush_output();
+    // Stack-heavy steps (a 456-byte ReducedModel on the stack for validation) run here, at the
+    // shallowest call depth, not inside the frame handler or the sweep processing.
+    if (commit_pending_ && !store_.busy() && !out_pending_) run_commit();
+    if (model_init_pending_) {
+      model_init_pending_ = false;
+      if (store_.init_state(model_state_, speed_rpm_, init_ambient_mK_, temp_mK_)) have_prediction_ = false;
+    }
     receive(now);
 
     const uint32_t acq_budget = acq_.poll(now);
@@ -150,7 +160,7 @@ class App {
   void save_config() {
     uint8_t rec[config_record::kSize];
     config_record::encode(config_, rec);
-    writer_.queue(eeprom_layout::kConfigAddr, rec, config_record::kSize);
+    store_.writer().queue(eeprom_layout::kConfigAddr, rec, config_record::kSize);
   }
 
   void load_and_bump_counters() {
@@ -165,7 +175,7 @@ class App {
     put_le16(c, resets_);
     put_le16(c + 2, watchdog_resets_);
     put_le16(c + 4, crc16_ccitt(c, 4));
-    writer_.queue(eeprom_layout::kCountersAddr, c, 6);
+    store_.writer().queue(eeprom_layout::kCountersAddr, c, 6);
   }
 
   // ---- measurement pipeline -----------------------------------------------------------------
@@ -207,7 +217,7 @@ class App {
     }
     update_speed();
     run_model(now);
-    diagnosis_.evaluate(store_.active() ? &model_ : 0, temp_mK_, predicted_mK_, status_, config_.roles,
+    diagnosis_.evaluate(store_.active() ? model_.limits : 0, temp_mK_, predicted_mK_, status_, config_.roles,
                         static_cast<uint32_t>(now - last_sweep_eval_ms_));
     last_sweep_eval_ms_ = now;
   }
@@ -230,8 +240,10 @@ class App {
     }
     const int32_t ambient = model_.ambient_channel < kChannels ? temp_mK_[model_.ambient_channel] : wire::kMissing;
     if (!model_initialised_) {
-      model_initialised_ = init_from_measurement(model_, model_state_, speed_rpm_, ambient, temp_mK_) ||
-                           ambient != wire::kMissing;
+      // Least-squares start from the measured temperatures, done by poll() after this sweep.
+      model_initialised_ = ambient != wire::kMissing;
+      model_init_pending_ = model_initialised_;
+      init_ambient_mK_ = ambient;
       model_last_step_ms_ = now;
     }
     // The poles are discretised for the blob's dt: step once per elapsed dt (catch up at most
@@ -239,7 +251,7 @@ class App {
     uint8_t steps = 0;
     bool stepped = false;
     while (static_cast<uint32_t>(now - model_last_step_ms_) >= model_.dt_ms && steps < 64) {
-      step(model_, model_state_, speed_rpm_, ambient, predicted_mK_);
+      store_.step_model(model_, model_state_, speed_rpm_, ambient, predicted_mK_);
       model_last_step_ms_ += model_.dt_ms;
       ++steps;
       stepped = true;
@@ -248,18 +260,32 @@ class App {
     if (!stepped && !have_prediction_) {
       // First sweep after (re)start: report the prediction of the current state without stepping.
       ReducedModelState probe = model_state_;
-      step(model_, probe, speed_rpm_, ambient, predicted_mK_);
+      store_.step_model(model_, probe, speed_rpm_, ambient, predicted_mK_);
     }
     have_prediction_ = true;
   }
 
   // ---- output -------------------------------------------------------------------------------
-  struct UartSink {
+  struct ResumeSink {
     Board* board;
-    void operator()(uint8_t b) { board->serial.write(b); }
+    uint8_t skip;  // wire bytes already sent
+    uint8_t pos;   // wire bytes produced and sent so far
+    bool full;
+    void operator()(uint8_t b) {
+      if (full) return;
+      if (pos < skip) {
+        ++pos;
+        return;
+      }
+      if (!board->serial.write(b)) {
+        full = true;
+        return;
+      }
+      ++pos;
+    }
   };
 
-  void queue_frame(wire::MsgType type, uint8_t seq, uint8_t len) {
+  BTSM_NOINLINE void queue_frame(wire::MsgType type, uint8_t seq, uint8_t len) {
     out_type_ = wire::type_code(type);
     out_seq_ = seq;
     out_len_ = len;
@@ -267,16 +293,22 @@ class App {
     flush_output();
   }
 
-  void flush_output() {
+  // Streams the pending frame into the UART ring; when the ring fills up it remembers how many
+  // wire bytes went out and resumes there on the next poll (the frame is re-encoded and the
+  // bytes already sent are skipped), so frames larger than the ring need no extra buffer.
+  BTSM_NOINLINE void flush_output() {
     if (!out_pending_) return;
-    const size_t size = wire::encoded_frame_size(out_type_, out_seq_, out_payload_, out_len_);
-    if (board_.serial.tx_free() < size) return;
-    UartSink sink = {&board_};
+    ResumeSink sink = {&board_, out_sent_, 0, false};
     wire::write_frame(sink, out_type_, out_seq_, out_payload_, out_len_);
+    if (sink.full) {
+      out_sent_ = sink.pos;
+      return;
+    }
+    out_sent_ = 0;
     out_pending_ = false;
   }
 
-  void send_ack(uint8_t seq, uint8_t type, wire::Nack status, uint16_t detail) {
+  BTSM_NOINLINE void send_ack(uint8_t seq, uint8_t type, wire::Nack status, uint16_t detail) {
     wire::Ack a;
     a.acked_seq = seq;
     a.acked_type = type;
@@ -292,7 +324,7 @@ class App {
 
   void on_store_writes_done() {
     if (store_.activation_pending()) {
-      store_.activate_committed();
+      store_.activate_committed(model_);
       model_initialised_ = false;
       have_prediction_ = false;
       model_state_.x_q20 = 0;
@@ -323,7 +355,7 @@ class App {
     rx_backlog_ = false;
     for (uint8_t n = 0; n < kMaxBytesPerPoll; ++n) {
       // One request at a time: wait while a response or a stored write is outstanding.
-      if (out_pending_ || ack_after_write_ || store_.busy()) {
+      if (out_pending_ || ack_after_write_ || commit_pending_ || store_.busy()) {
         rx_backlog_ = true;
         return;
       }
@@ -359,7 +391,7 @@ class App {
       case wire::MsgType::SetConfig: {
         wire::ConfigValue m;
         if (!wire::decode_set_config(p, len, m)) return send_ack(seq, type, wire::Nack::BadValue, p[0]);
-        if (writer_.busy()) return send_ack(seq, type, wire::Nack::Busy, 0);
+        if (store_.busy()) return send_ack(seq, type, wire::Nack::Busy, 0);
         config_.set(m.key, m.value);
         apply_config();
         save_config();
@@ -392,17 +424,12 @@ class App {
         ack_after_write_ = true;  // ACK once the chunk is in EEPROM
         return;
       }
-      case wire::MsgType::ModelCommit: {
-        wire::ModelCommit m;
-        wire::decode_model_commit(p, len, m);
-        uint16_t detail = 0;
-        const wire::Nack r = store_.commit(m.hmac, model_, detail);
-        if (r != wire::Nack::Ok) return send_ack(seq, type, r, detail);
+      case wire::MsgType::ModelCommit:
+        // The tag stays in the decoder buffer: no byte is pushed until run_commit() is done.
         deferred_seq_ = seq;
         deferred_type_ = type;
-        ack_after_write_ = true;  // ACK once the commit marker is written
+        commit_pending_ = true;
         return;
-      }
       case wire::MsgType::ModelRead: {
         wire::ModelRead m;
         if (!wire::decode_model_read(p, len, m) ||
@@ -423,6 +450,14 @@ class App {
         return;
       default: return send_ack(seq, type, wire::Nack::UnknownType, 0);
     }
+  }
+
+  void run_commit() {
+    commit_pending_ = false;
+    uint16_t detail = 0;
+    const wire::Nack r = store_.commit(decoder_.payload(), detail);
+    if (r != wire::Nack::Ok) return send_ack(deferred_seq_, deferred_type_, r, detail);
+    ack_after_write_ = true;  // ACK once the commit marker is written
   }
 
   void send_info(uint8_t seq, uint32_t now) {
@@ -469,11 +504,7 @@ class App {
     put_le16(seed + 10, board_.identity.entropy_bits());
     put_le32(seed + 12, now);
     wire::AuthChallenge ch;
-    {
-      uint8_t digest[kSha256DigestSize];
-      sha256(seed, sizeof seed, digest);
-      for (uint8_t i = 0; i < wire::kNonceSize; ++i) ch.nonce[i] = digest[i];
-    }
+    store_.derive_nonce(seed, ch.nonce);
     const wire::Nack r = store_.begin(m.total_len, m.blob_crc32, ch.nonce, wire::kNonceSize,
                                       rec + device_key::kOffsetKey, static_cast<uint8_t>(device_key::kKeySize));
     secure_zero(rec, sizeof rec);
@@ -484,16 +515,16 @@ class App {
   Board& board_;
   Acquisition<Spi> acq_;
   ModelStore<Storage> store_;
-  EepromWriter<Storage> writer_;
   wire::FrameDecoder decoder_;
   FirmwareConfig config_;
-  ReducedModel model_;
+  ModelRuntime model_;
   ReducedModelState model_state_;
   ScalarKalman<float> kalman_[kChannels];
   DiagnosisStage diagnosis_;
-  int32_t temp_mK_[kChannels] = {wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing};
-  int32_t predicted_mK_[kChannels] = {wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing, wire::kMissing};
-  uint8_t status_[kChannels] = {0, 0, 0, 0, 0};
+  // Set in init() (an initialiser image would sit in SRAM on AVR).
+  int32_t temp_mK_[kChannels];
+  int32_t predicted_mK_[kChannels];
+  uint8_t status_[kChannels];
   uint8_t out_payload_[wire::kMaxPayload];
   uint32_t start_ms_ = 0;
   uint32_t next_sweep_ms_ = 0;
@@ -513,10 +544,14 @@ class App {
   uint8_t out_type_ = 0;
   uint8_t out_seq_ = 0;
   uint8_t out_len_ = 0;
+  uint8_t out_sent_ = 0;
   uint8_t deferred_seq_ = 0;
   uint8_t deferred_type_ = 0;
   uint8_t reset_cause_ = 0;
+  int32_t init_ambient_mK_ = 0;
   bool out_pending_ = false;
+  bool commit_pending_ = false;
+  bool model_init_pending_ = false;
   bool sample_pending_ = false;
   bool sweep_in_progress_ = false;
   bool ack_after_write_ = false;

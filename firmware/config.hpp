@@ -60,10 +60,10 @@ struct FirmwareConfig {
   }
 
   void set_defaults() {
+    // Every key 0x01..0x14 that config_key_range() knows (no key table: it would sit in SRAM).
     wire::ConfigRange r;
-    static const uint8_t kKeys[] = {0x01, 0x02, 0x03, 0x04, 0x05, 0x06, 0x07, 0x10, 0x11, 0x12, 0x13, 0x14};
-    for (uint8_t i = 0; i < sizeof kKeys; ++i) {
-      if (wire::config_key_range(kKeys[i], r)) set(kKeys[i], r.default_value);
+    for (uint8_t key = 0x01; key <= wire::kChannelRoleKeyLast; ++key) {
+      if (wire::config_key_range(key, r)) set(key, r.default_value);
     }
   }
 

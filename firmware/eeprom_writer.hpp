@@ -9,10 +9,9 @@
 
 namespace btsm {
 
-template <class Storage>
+template <class Storage, uint8_t kCapacity>
 class EepromWriter {
  public:
-  static constexpr uint8_t kCapacity = 60;
   static constexpr uint8_t kMaxSegments = 2;
 
   explicit EepromWriter(Storage& storage) : storage_(storage) {}

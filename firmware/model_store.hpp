@@ -16,16 +16,30 @@
 #define BTSM_FIRMWARE_MODEL_STORE_HPP
 
 #include <stdint.h>
+#include <string.h>
 
 #include "common/byte_order.hpp"
 #include "common/crc.hpp"
 #include "common/hmac.hpp"
 #include "common/reduced_model.hpp"
 #include "common/wire_messages.hpp"
+#include "firmware/compiler.hpp"
 #include "firmware/eeprom_layout.hpp"
 #include "firmware/eeprom_writer.hpp"
 
 namespace btsm {
+
+// What the firmware keeps of the active model in RAM (72 bytes instead of the 456-byte
+// ReducedModel): the speed schedule and the diagnosis limits. Breakpoint coefficients are read
+// from EEPROM at every model step (two breakpoints, 96 bytes of EEPROM reads).
+struct ModelRuntime {
+  uint8_t n_breakpoints;
+  uint8_t ambient_channel;
+  uint8_t enabled_mask;
+  uint16_t dt_ms;
+  uint16_t speed_rpm[kModelMaxBreakpoints];
+  ChannelLimits limits[kModelChannels];
+};
 
 template <class Storage>
 class ModelStore {
@@ -39,7 +53,7 @@ class ModelStore {
   // Finds the valid slot with the highest sequence number and loads it into `model`.
   // A slot whose CRC is fine but whose content fails validation is skipped (state Rejected when
   // nothing else is usable).
-  void boot(ReducedModel& model) {
+  void boot(ModelRuntime& rt) {
     active_slot_ = kNoSlot;
     state_ = wire::ModelState::None;
     uint8_t order[2] = {0, 1};
@@ -56,7 +70,7 @@ class ModelStore {
     for (uint8_t k = 0; k < 2; ++k) {
       const uint8_t s = order[k];
       if (!ok[s]) continue;
-      if (load_slot(s, model).ok()) {
+      if (load_runtime(s, rt)) {
         active_slot_ = s;
         active_seq_ = seq[s];
         state_ = wire::ModelState::Active;
@@ -83,12 +97,26 @@ class ModelStore {
   // ---- upload session -----------------------------------------------------------------------
 
   bool busy() const { return writer_.busy(); }
+  // The one EEPROM writer of the firmware (the App queues configuration records on it too).
+  EepromWriter<Storage, 58>& writer() { return writer_; }
   // Advances pending EEPROM writes; true when none are left.
   bool step() { return writer_.step(); }
   bool session_open() const { return session_ != kNoSession; }
   uint16_t expected_offset() const { return received_; }
 
-  // `key_record` is the device key record (firmware/device_key.hpp layout, already validated).
+  // Derives the session nonce from `seed` (16 bytes of entropy and counters): nonce = first 16
+  // bytes of HMAC-SHA256(seed, "") -- computed with the session's own MAC context, so no second
+  // SHA-256 context is needed on the stack.
+  static constexpr uint8_t kNonceSize = 16;
+  void derive_nonce(const uint8_t* seed, uint8_t* nonce) {
+    uint8_t digest[kHmacSha256Size];
+    mac_.init(seed, kNonceSize);
+    mac_.final(digest);
+    for (uint8_t i = 0; i < kNonceSize; ++i) nonce[i] = digest[i];
+    secure_zero(digest, sizeof digest);
+  }
+
+  // Opens a session: `nonce` (already sent to the host), `key` the device key.
   Nack begin(uint16_t total_len, uint32_t blob_crc, const uint8_t* nonce, uint8_t nonce_len,
              const uint8_t* key, uint8_t key_len) {
     if (busy()) return Nack::Busy;
@@ -126,34 +154,20 @@ class ModelStore {
     return Nack::Ok;
   }
 
-  // Checks the tag and the stored blob, parses it into `model` and queues the slot header.
-  // On any failure the session ends and `model` is reloaded from the active slot (callers must
-  // pass their live model: parsing happens in place to save 460 bytes of RAM).
-  Nack commit(const uint8_t* tag, ReducedModel& model, uint16_t& detail) {
+  // Checks the tag and the stored blob, validates it and queues the slot header. On any failure
+  // the session ends and the active slot stays in use.
+  Nack commit(const uint8_t* tag, uint16_t& detail) {
     detail = 0;
     if (session_ != kReceiving) return Nack::NoSession;
     if (busy()) return Nack::Busy;
     session_ = kNoSession;  // single use, whatever happens next
-    uint8_t expected[kHmacSha256Size];
-    mac_.final(expected);
-    const bool tag_ok = constant_time_equal(expected, tag, kHmacSha256Size);
-    secure_zero(expected, sizeof expected);
-    if (!tag_ok) return Nack::AuthFailed;
-    if (received_ != eeprom_layout::kBlobSize) {
-      detail = received_;
-      return Nack::BadLength;
-    }
-    if (running_crc_ != expected_crc_) return Nack::BlobCrc;
-    uint32_t stored_crc = 0;
-    for (uint16_t i = 0; i < eeprom_layout::kBlobSize; ++i) {
-      const uint8_t b = storage_.read(static_cast<uint16_t>(eeprom_layout::blob_addr(target_slot_) + i));
-      stored_crc = crc32(&b, 1, stored_crc);
-    }
-    if (stored_crc != running_crc_) return Nack::StoreFailed;  // EEPROM did not keep the bytes
-    const ModelCheck check = load_slot(target_slot_, model);
+    // Each step is its own out-of-line function so their buffers are never on the stack together
+    // with the 456-byte model of check_slot() (2 KB of SRAM on the ATmega328P).
+    const Nack stored = verify_tag_and_bytes(tag, detail);
+    if (stored != Nack::Ok) return stored;
+    const ModelCheck check = check_slot(target_slot_);
     if (!check.ok()) {
       detail = check.detail();
-      reload_active(model);
       // The wire's BLOB_VERSION covers "magic/version not understood".
       if (check.status == ModelStatus::kBadMagic) return Nack::BlobVersion;
       switch (model_status_class(check.status)) {
@@ -162,30 +176,15 @@ class ModelStore {
         default: return Nack::BlobInvalid;
       }
     }
-    // Sequence + CRC first, commit marker last.
-    uint8_t hdr[8];
-    put_le32(hdr, next_seq_);
-    uint8_t seq_le[4];
-    put_le32(seq_le, next_seq_);
-    put_le32(hdr + 4, slot_crc(seq_le));
-    const uint16_t base = eeprom_layout::slot_addr(target_slot_);
-    uint8_t len_le[2];
-    put_le16(len_le, eeprom_layout::kBlobSize);
-    // Header bytes 2..11 (seq, crc, len) in one segment, then the marker.
-    uint8_t body[10];
-    for (uint8_t i = 0; i < 8; ++i) body[i] = hdr[i];
-    body[8] = len_le[0];
-    body[9] = len_le[1];
-    const uint8_t marker[2] = {eeprom_layout::kMarker0, eeprom_layout::kMarker1};
-    writer_.queue(static_cast<uint16_t>(base + eeprom_layout::kHdrSeq), body, 10);
-    writer_.queue(static_cast<uint16_t>(base + eeprom_layout::kHdrMarker), marker, 2);
+    queue_slot_header();
     pending_activation_ = true;
     return Nack::Ok;
   }
 
   // After commit() returned Ok and step() finished the writes: switch to the new slot.
   bool activation_pending() const { return pending_activation_; }
-  void activate_committed() {
+  void activate_committed(ModelRuntime& rt) {
+    load_runtime(target_slot_, rt);
     pending_activation_ = false;
     active_slot_ = target_slot_;
     active_seq_ = next_seq_;
@@ -194,6 +193,28 @@ class ModelStore {
   }
 
   void abort_session() { session_ = kNoSession; }
+
+  // One model step (common/reduced_model.hpp definition) with the two breakpoints read from the
+  // active slot: writes predicted temperatures (mK) and advances the state.
+  void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
+                  int32_t* predicted_mK) const {
+    const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
+    ModelBreakpoint lo, hi;
+    read_breakpoint(seg.lo, lo);
+    read_breakpoint(seg.hi, hi);
+    ModelBreakpoint p;
+    interpolate(lo, hi, seg.frac_q16, p);
+    step_with(p, seg.running, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
+  }
+
+  // Least-squares initial state from measured temperatures (common init_from_measurement), with a
+  // temporary full model on the stack: called once after boot or a new model.
+  bool init_state(ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK, const int32_t* measured_mK) const {
+    if (!active()) return false;
+    ReducedModel tmp;
+    if (!load_slot(active_slot_, tmp).ok()) return false;
+    return init_from_measurement(tmp, st, speed_rpm, ambient_mK, measured_mK);
+  }
 
   // Parses and validates the blob of `slot` from EEPROM into `out` (same checks and order as the
   // common decode(): CRC, magic, version, content). `out` is modified even on failure.
@@ -239,11 +260,52 @@ class ModelStore {
   enum Session : uint8_t { kNoSession, kReceiving };
   static constexpr uint8_t kNoSlot = 0xFF;
 
-  void read_bytes(uint16_t addr, uint8_t* out, uint8_t n) const {
+  BTSM_NOINLINE Nack verify_tag_and_bytes(const uint8_t* tag, uint16_t& detail) {
+    uint8_t expected[kHmacSha256Size];
+    mac_.final(expected);
+    const bool tag_ok = constant_time_equal(expected, tag, kHmacSha256Size);
+    secure_zero(expected, sizeof expected);
+    if (!tag_ok) return Nack::AuthFailed;
+    if (received_ != eeprom_layout::kBlobSize) {
+      detail = received_;
+      return Nack::BadLength;
+    }
+    if (running_crc_ != expected_crc_) return Nack::BlobCrc;
+    uint32_t stored_crc = 0;
+    for (uint16_t i = 0; i < eeprom_layout::kBlobSize; ++i) {
+      const uint8_t b = storage_.read(static_cast<uint16_t>(eeprom_layout::blob_addr(target_slot_) + i));
+      stored_crc = crc32(&b, 1, stored_crc);
+    }
+    if (stored_crc != running_crc_) return Nack::StoreFailed;  // EEPROM did not keep the bytes
+    return Nack::Ok;
+  }
+
+  // Sequence + CRC first, commit marker last (two ordered writer segments).
+  BTSM_NOINLINE void queue_slot_header() {
+    uint8_t seq_le[4];
+    put_le32(seq_le, next_seq_);
+    uint8_t body[10];  // header bytes 2..11: seq, crc, blob length
+    put_le32(body, next_seq_);
+    put_le32(body + 4, slot_crc(seq_le));
+    put_le16(body + 8, eeprom_layout::kBlobSize);
+    const uint8_t marker[2] = {eeprom_layout::kMarker0, eeprom_layout::kMarker1};
+    const uint16_t base = eeprom_layout::slot_addr(target_slot_);
+    writer_.queue(static_cast<uint16_t>(base + eeprom_layout::kHdrSeq), body, 10);
+    writer_.queue(static_cast<uint16_t>(base + eeprom_layout::kHdrMarker), marker, 2);
+  }
+
+  BTSM_NOINLINE void read_bytes(uint16_t addr, uint8_t* out, uint8_t n) const {
     for (uint8_t i = 0; i < n; ++i) out[i] = storage_.read(static_cast<uint16_t>(addr + i));
   }
 
-  uint32_t slot_crc(const uint8_t* seq_le) const {
+  void read_breakpoint(uint8_t i, ModelBreakpoint& bp) const {
+    uint8_t buf[kBlobBreakpointSize];
+    read_bytes(static_cast<uint16_t>(eeprom_layout::blob_addr(active_slot_) + kBlobOffBreakpoints + kBlobBreakpointSize * i),
+               buf, kBlobBreakpointSize);
+    decode_breakpoint(buf, bp);
+  }
+
+  BTSM_NOINLINE uint32_t slot_crc(const uint8_t* seq_le) const {
     uint32_t crc = crc32(seq_le, 4);
     for (uint16_t i = 0; i < eeprom_layout::kBlobSize; ++i) {
       const uint8_t b = storage_.read(static_cast<uint16_t>(eeprom_layout::blob_addr(target_slot_) + i));
@@ -267,12 +329,27 @@ class ModelStore {
     return crc == get_le32(h + eeprom_layout::kHdrCrc);
   }
 
-  void reload_active(ReducedModel& model) {
-    if (active_slot_ != kNoSlot) load_slot(active_slot_, model);
+  // Full validation with a temporary ReducedModel on the stack (boot and commit only).
+  BTSM_NOINLINE ModelCheck check_slot(uint8_t slot) const {
+    ReducedModel tmp;
+    return load_slot(slot, tmp);
+  }
+
+  // Validates the slot and copies the schedule and limits (false: slot invalid, rt untouched).
+  bool load_runtime(uint8_t slot, ModelRuntime& rt) const {
+    ReducedModel tmp;
+    if (!load_slot(slot, tmp).ok()) return false;
+    rt.n_breakpoints = tmp.n_breakpoints;
+    rt.ambient_channel = tmp.ambient_channel;
+    rt.enabled_mask = tmp.enabled_mask;
+    rt.dt_ms = tmp.dt_ms;
+    memcpy(rt.speed_rpm, tmp.speed_rpm, sizeof rt.speed_rpm);
+    memcpy(rt.limits, tmp.limits, sizeof rt.limits);
+    return true;
   }
 
   Storage& storage_;
-  EepromWriter<Storage> writer_;
+  EepromWriter<Storage, 58> writer_;
   HmacSha256 mac_;
   uint32_t expected_crc_ = 0;
   uint32_t running_crc_ = 0;

@@ -11,6 +11,9 @@
 #include "hal/contracts.hpp"
 
 static_assert(btsm::hal::CheckBoard<btsm::bluno::Board>::value, "Bluno board must satisfy the HAL contract");
+#if defined(BTSM_KEY_SECTION_ADDR)
+static_assert(BTSM_KEY_SECTION_ADDR == btsm::device_key::kFlashAddress, "linker address of .btsm_key != device_key.hpp");
+#endif
 static_assert(sizeof(double) == 4, "avr-g++: double is 32-bit; the firmware must not rely on more");
 
 // The per-device key record (firmware/device_key.hpp), linked at device_key::kFlashAddress by

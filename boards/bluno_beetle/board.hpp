@@ -27,8 +27,8 @@ struct Pins {
   static constexpr uint8_t kTach = PD2;  // INT0
 };
 
-static constexpr uint16_t kRxBufferBytes = 64;  // power of two
-static constexpr uint16_t kTxBufferBytes = 96;
+static constexpr uint16_t kRxBufferBytes = 48;
+static constexpr uint16_t kTxBufferBytes = 40;
 
 struct Spi {
   static void select() { PORTB &= static_cast<uint8_t>(~(1 << Pins::kAdcCs)); }

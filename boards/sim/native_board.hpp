@@ -37,8 +37,8 @@ namespace btsm::sim {
 struct NativeBoardOptions {
   Ad7794ModelOptions adc;              // AD7794 model options (seed, noise, ...)
   uint32_t uart_baud = 115200;         // bit/s, 10 bits per byte; 0 = bytes move instantly
-  uint16_t rx_buffer_bytes = 64;       // firmware receive ring capacity (AVR board: same value)
-  uint16_t tx_buffer_bytes = 96;       // firmware transmit ring capacity (AVR board: same value)
+  uint16_t rx_buffer_bytes = 47;       // firmware receive ring capacity (AVR board: 48-slot ring)
+  uint16_t tx_buffer_bytes = 39;       // firmware transmit ring capacity (AVR board: 40-slot ring)
   uint32_t eeprom_write_us = 3400;     // us per EEPROM byte write (ATmega328P datasheet: 3.3 ms)
   uint32_t watchdog_timeout_ms = 2000; // ms (AVR board uses WDTO_2S)
   uint32_t device_id = 0x0000DE70;     // reported in INFO

@@ -1,5 +1,7 @@
 #include "host/link/ble_profile.hpp"
 
+#include <cctype>
+
 namespace btsm::link {
 
 using att::Uuid;
@@ -91,7 +93,10 @@ void setup_profile(GattClient& client, const BleSerialProfile& p, const std::str
                       peer + ": Bluno service found but no Model Number (0x2a24) to confirm it is a Bluno");
     const auto value = client.read(p.model_number_handle);
     const std::string model(value.begin(), value.end());
-    if (model.rfind("DF BLUNO", 0) != 0)
+    // BlunoLibrary compares the upper-cased value: firmware versions differ in case.
+    std::string upper = model;
+    for (char& c : upper) c = static_cast<char>(std::toupper(static_cast<unsigned char>(c)));
+    if (upper.rfind("DF BLUNO", 0) != 0)
       throw LinkError(LinkErrorKind::kUnsupported,
                       peer + ": Model Number is '" + model + "', not a DFRobot Bluno (expected 'DF BLUNO...')");
     if (p.command_handle != 0) {

@@ -15,6 +15,7 @@
 #include <cmath>
 #include <map>
 #include <sstream>
+#include <thread>
 #include <stdexcept>
 
 namespace btsm::thermal {
@@ -103,20 +104,57 @@ class LmEvaluator {
   Evaluation evaluate(const Eigen::VectorXd& u, bool with_jacobian) {
     apply(u);
     build_keys(with_jacobian);
-    const int n = pr_.n(), nf = pr_.nf();
-    const int local = nf + (pr_.estimate_x0 ? n : 0);
-    Evaluation ev;
+    const int local = pr_.nf() + (pr_.estimate_x0 ? pr_.n() : 0);
     const int nu = pr_.unknowns();
-    if (with_jacobian) {
-      ev.H = Eigen::MatrixXd::Zero(nu, nu);
-      ev.g = Eigen::VectorXd::Zero(nu);
+    // Runs are independent given the parameters: spread them over the cores.
+    const std::size_t nruns = pr_.runs.size();
+    const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
+    const std::size_t workers = std::min<std::size_t>({nruns, hw, 4});
+    std::vector<Evaluation> part(workers);
+    for (auto& e : part)
+      if (with_jacobian) {
+        e.H = Eigen::MatrixXd::Zero(nu, nu);
+        e.g = Eigen::VectorXd::Zero(nu);
+      }
+    // Longest runs first, round-robin, for balance.
+    std::vector<std::size_t> order(nruns);
+    for (std::size_t i = 0; i < nruns; ++i) order[i] = i;
+    std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+      return pr_.runs[a].end - pr_.runs[a].begin > pr_.runs[b].end - pr_.runs[b].begin;
+    });
+    auto work = [&](std::size_t w) {
+      for (std::size_t i = w; i < nruns; i += workers) evaluate_run(order[i], with_jacobian, local, part[w]);
+    };
+    if (workers <= 1) {
+      work(0);
+    } else {
+      std::vector<std::thread> threads;
+      for (std::size_t w = 1; w < workers; ++w) threads.emplace_back(work, w);
+      work(0);
+      for (auto& t : threads) t.join();
     }
+    Evaluation ev = std::move(part[0]);
+    for (std::size_t w = 1; w < workers; ++w) {
+      ev.ssr += part[w].ssr;
+      ev.count += part[w].count;
+      if (with_jacobian) {
+        ev.H += part[w].H;
+        ev.g += part[w].g;
+      }
+    }
+    ev.cost = 0.5 * ev.ssr;
+    gauge(u, with_jacobian, ev);
+    return ev;
+  }
+
+  void evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const {
+    const int n = pr_.n(), nf = pr_.nf();
     constexpr int kBlock = 512;
     Eigen::MatrixXd jbuf(kBlock, local);
     Eigen::VectorXd rbuf(kBlock);
     Eigen::MatrixXd S(n, nf), X(n, n), Snext(n, nf), Xnext(n, n), D(n, nf);
     Eigen::VectorXd x(n), xnext(n), dv(n * nf), extra(n);
-    for (std::size_t ri = 0; ri < pr_.runs.size(); ++ri) {
+    {
       const Run& run = pr_.runs[ri];
       const Recording& rec = *run.rec;
       Eigen::MatrixXd Hl;
@@ -154,7 +192,7 @@ class LmEvaluator {
         if (k == run.end) break;
         const double dt = rec.time_s[k + 1] - rec.time_s[k];
         const double amb = rec.ambient_c[k];
-        const KeyData& kd = keys_.at(std::make_pair(rec.speed_rpm[k], dt));
+        const KeyData& kd = keys_.find(std::make_pair(rec.speed_rpm[k], dt))->second;
         xnext.noalias() = kd.base.Phi * x;
         xnext += kd.base.drive + kd.base.ambient_gain * amb;
         if (run.extra) {
@@ -189,8 +227,12 @@ class LmEvaluator {
         }
       }
     }
-    ev.cost = 0.5 * ev.ssr;
-    // Scale gauge as a stiff residual on log(sum C).
+  }
+
+  // Scale gauge as a stiff residual on log(sum C).
+  void gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const {
+    const int nf = pr_.nf();
+    const int nu = pr_.unknowns();
     if (std::isfinite(pr_.sum_c)) {
       double sum = 0;
       for (const auto& nd : pr_.net->nodes) sum += pr_.p[nd.capacitance_param];
@@ -206,7 +248,6 @@ class LmEvaluator {
         ev.g += jg * rg;
       }
     }
-    return ev;
   }
 
   void apply(const Eigen::VectorXd& u) {

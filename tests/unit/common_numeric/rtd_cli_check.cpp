@@ -14,17 +14,17 @@
 
 namespace {
 
-struct Run {
+struct CmdResult {
   int exit_code;
   std::string out;
 };
 
 // stdout (and stderr when merge_stderr) of a shell command plus its exit code.
-Run run(const std::string& cmd, bool merge_stderr) {
+CmdResult run_cmd(const std::string& cmd, bool merge_stderr) {
   const std::string full = cmd + (merge_stderr ? " 2>&1" : " 2>/dev/null");
   FILE* p = popen(full.c_str(), "r");
   EXPECT_NE(p, nullptr) << full;
-  Run r{-1, {}};
+  CmdResult r{-1, {}};
   if (p == nullptr) return r;
   char buf[4096];
   size_t n;
@@ -49,6 +49,7 @@ TEST(RtdCli, R2tMatchesEveryEntryOfTheItsEn60751Table) {
   std::vector<std::string> r_text;
   std::string line;
   while (std::getline(in, line)) {
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();  // CRLF file
     if (line.empty()) continue;
     const size_t comma = line.find(',');
     ASSERT_NE(comma, std::string::npos) << line;
@@ -58,7 +59,7 @@ TEST(RtdCli, R2tMatchesEveryEntryOfTheItsEn60751Table) {
   ASSERT_EQ(t_table.size(), 1041u);
   std::string cmd = btsm() + " rtd r2t --r0 100";
   for (const auto& r : r_text) cmd += " " + r;
-  const Run res = run(cmd, false);
+  const CmdResult res = run_cmd(cmd, false);
   ASSERT_EQ(res.exit_code, 0) << "is " << btsm() << " built?";
   std::istringstream lines(res.out);
   double worst = 0;
@@ -76,25 +77,25 @@ TEST(RtdCli, R2tMatchesEveryEntryOfTheItsEn60751Table) {
 }
 
 TEST(RtdCli, T2rDefaultsToPt1000) {
-  const Run res = run(btsm() + " rtd t2r 0 100 -200", false);
+  const CmdResult res = run_cmd(btsm() + " rtd t2r 0 100 -200", false);
   ASSERT_EQ(res.exit_code, 0);
   EXPECT_EQ(res.out, "1000.0000\n1385.0550\n185.2008\n");
 }
 
 TEST(RtdCli, OutOfRangeAndNonNumericInputNameTheValue) {
-  Run res = run(btsm() + " rtd r2t --r0 100 138.5 12.0", true);
+  CmdResult res = run_cmd(btsm() + " rtd r2t --r0 100 138.5 12.0", true);
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.out.find("'12.0'"), std::string::npos) << res.out;
   EXPECT_NE(res.out.find("below"), std::string::npos) << res.out;
   EXPECT_EQ(res.out.find("138.5"), std::string::npos) << "no partial output on error: " << res.out;
-  res = run(btsm() + " rtd t2r 20 twenty 900", true);
+  res = run_cmd(btsm() + " rtd t2r 20 twenty 900", true);
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.out.find("'twenty' is not a number"), std::string::npos) << res.out;
   EXPECT_NE(res.out.find("'900'"), std::string::npos) << res.out;
-  res = run(btsm() + " rtd r2t --r0 0 100", true);
+  res = run_cmd(btsm() + " rtd r2t --r0 0 100", true);
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.out.find("--r0"), std::string::npos) << res.out;
-  res = run(btsm() + " rtd r2t nan", true);
+  res = run_cmd(btsm() + " rtd r2t nan", true);
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.out.find("'nan'"), std::string::npos) << res.out;
 }

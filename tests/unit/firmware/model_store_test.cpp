@@ -36,7 +36,7 @@ struct Upload {
 };
 
 // Runs a whole upload through the store, stepping EEPROM writes; stops at a power loss.
-Upload upload(sim::NativeBoard& board, ModelStore<Storage>& store, ReducedModel& model,
+Upload upload(sim::NativeBoard& board, ModelStore<Storage>& store, ModelRuntime& model,
               const std::vector<uint8_t>& blob, const std::array<uint8_t, 32>& key,
               const std::array<uint8_t, 32>& device_key, uint8_t nonce_byte = 7,
               const std::array<uint8_t, 32>* forced_tag = nullptr) {
@@ -61,10 +61,10 @@ Upload upload(sim::NativeBoard& board, ModelStore<Storage>& store, ReducedModel&
     if (!drain()) { u.power_lost = true; return u; }
   }
   const auto tag = forced_tag ? *forced_tag : tag_for(key, nonce, blob);
-  u.commit = store.commit(tag.data(), model, u.detail);
+  u.commit = store.commit(tag.data(), u.detail);
   if (u.commit != Nack::Ok) return u;
   if (!drain()) { u.power_lost = true; return u; }
-  store.activate_committed();
+  store.activate_committed(model);
   return u;
 }
 
@@ -77,7 +77,7 @@ std::vector<uint8_t> active_blob(ModelStore<Storage>& store) {
 TEST(ModelStore, EmptyEepromHasNoModel) {
   sim::NativeBoard board(fast_eeprom());
   ModelStore<Storage> store(board.storage);
-  ReducedModel m;
+  ModelRuntime m;
   store.boot(m);
   EXPECT_EQ(store.state(), wire::ModelState::None);
   EXPECT_EQ(store.active_blob_crc(), 0u);
@@ -88,7 +88,7 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
   const auto key = test::dev_key();
   const auto blob = test::model_blob();
   ASSERT_EQ(blob.size(), kReducedModelBlobSize);
-  ReducedModel m;
+  ModelRuntime m;
   {
     ModelStore<Storage> store(board.storage);
     store.boot(m);
@@ -99,14 +99,18 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
     EXPECT_EQ(store.active_blob_crc(), blob_stored_crc(blob.data()));
   }
   ModelStore<Storage> again(board.storage);
-  ReducedModel loaded;
+  ModelRuntime loaded;
   again.boot(loaded);
   ASSERT_TRUE(again.active());
   EXPECT_EQ(active_blob(again), blob);
-  ReducedModel ref;
+  ReducedModel ref, parsed;
   ASSERT_TRUE(decode(blob.data(), blob.size(), ref).ok());
-  EXPECT_EQ(std::memcmp(&ref.bp, &loaded.bp, sizeof ref.bp), 0);
+  ASSERT_TRUE(again.load_slot(0, parsed).ok());
+  EXPECT_EQ(std::memcmp(&ref.bp, &parsed.bp, sizeof ref.bp), 0);
   EXPECT_EQ(loaded.dt_ms, ref.dt_ms);
+  EXPECT_EQ(loaded.n_breakpoints, ref.n_breakpoints);
+  EXPECT_EQ(std::memcmp(loaded.speed_rpm, ref.speed_rpm, sizeof ref.speed_rpm), 0);
+  EXPECT_EQ(loaded.limits[0].alarm_band_mK, ref.limits[0].alarm_band_mK);
   // A second model goes to the other slot with the next sequence number.
   const auto blob2 = test::model_blob(1.0);
   ASSERT_EQ(upload(board, again, loaded, blob2, key, key).commit, Nack::Ok);
@@ -143,18 +147,18 @@ TEST(ModelStore, InvalidBlobsAreNackedAndTheOldModelStaysActive) {
     SCOPED_TRACE(c.name);
     sim::NativeBoard board(fast_eeprom());
     ModelStore<Storage> store(board.storage);
-    ReducedModel m;
+    ModelRuntime m;
     store.boot(m);
     const auto good = test::model_blob();
     ASSERT_EQ(upload(board, store, m, good, key, key).commit, Nack::Ok);
-    ReducedModel before = m;
+    ModelRuntime before = m;
     auto bad = good;
     c.edit(bad);
     const Upload u = upload(board, store, m, bad, key, key);
     EXPECT_EQ(u.commit, c.expected);
     EXPECT_EQ(store.active_seq(), 1u);
     EXPECT_EQ(active_blob(store), good);
-    EXPECT_EQ(std::memcmp(&before, &m, sizeof m), 0) << "live model restored after the failed parse";
+    EXPECT_EQ(std::memcmp(&before, &m, sizeof m), 0) << "runtime model untouched by the failed upload";
     ModelStore<Storage> rebooted(board.storage);
     rebooted.boot(m);
     EXPECT_EQ(rebooted.active_seq(), 1u);
@@ -165,7 +169,7 @@ TEST(ModelStore, InvalidBlobsAreNackedAndTheOldModelStaysActive) {
 TEST(ModelStore, WrongKeyReplayAndProtocolErrorsAreRefused) {
   sim::NativeBoard board(fast_eeprom());
   ModelStore<Storage> store(board.storage);
-  ReducedModel m;
+  ModelRuntime m;
   store.boot(m);
   const auto key = test::dev_key();
   const auto blob = test::model_blob();
@@ -184,7 +188,7 @@ TEST(ModelStore, WrongKeyReplayAndProtocolErrorsAreRefused) {
   EXPECT_EQ(store.active_seq(), 1u);
   // Commit without a session (the nonce was used up by the failed commit).
   uint16_t detail = 0;
-  EXPECT_EQ(store.commit(old_tag.data(), m, detail), Nack::NoSession);
+  EXPECT_EQ(store.commit(old_tag.data(), detail), Nack::NoSession);
   uint8_t data[4] = {1, 2, 3, 4};
   EXPECT_EQ(store.chunk(0, data, 4, detail), Nack::NoSession);
   // Wrong total length and out-of-order chunk.
@@ -208,7 +212,7 @@ TEST(ModelStore, PowerLossAtEveryWriteIndexLeavesAValidModel) {
   {
     sim::NativeBoard board(fast_eeprom());
     ModelStore<Storage> store(board.storage);
-    ReducedModel m;
+    ModelRuntime m;
     store.boot(m);
     ASSERT_EQ(upload(board, store, m, old_blob, key, key).commit, Nack::Ok);
     image = board.eeprom();
@@ -222,7 +226,7 @@ TEST(ModelStore, PowerLossAtEveryWriteIndexLeavesAValidModel) {
     for (uint8_t torn : {uint8_t(0xFF), uint8_t(0x00), uint8_t(0x5A)}) {
       sim::NativeBoard board(fast_eeprom());
       board.eeprom() = image;
-      ReducedModel m;
+      ModelRuntime m;
       ModelStore<Storage> store(board.storage);
       store.boot(m);
       ASSERT_EQ(store.active_seq(), 1u);
@@ -231,7 +235,7 @@ TEST(ModelStore, PowerLossAtEveryWriteIndexLeavesAValidModel) {
       ASSERT_EQ(u.power_lost, k < writes_per_upload) << "write " << k;
       board.mcu_reset();
       ModelStore<Storage> after(board.storage);
-      ReducedModel loaded;
+      ModelRuntime loaded;
       after.boot(loaded);
       ASSERT_TRUE(after.active()) << "no valid model after power loss at write " << k;
       const auto got = active_blob(after);

@@ -1,0 +1,204 @@
+#include "host/link/firmware_image.hpp"
+
+#include "firmware/device_key.hpp"
+
+#include <fcntl.h>
+#include <spawn.h>
+#include <sys/stat.h>
+#include <sys/wait.h>
+#include <unistd.h>
+
+#include <fmt/format.h>
+
+#include <cerrno>
+#include <cstring>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+extern char** environ;
+
+namespace btsm::link {
+
+namespace {
+int hexval(char c) {
+  if (c >= '0' && c <= '9') return c - '0';
+  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
+  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
+  return -1;
+}
+}  // namespace
+
+HexImage parse_intel_hex(const std::string& text, const std::string& source) {
+  HexImage img;
+  std::istringstream in(text);
+  std::string line;
+  size_t line_no = 0;
+  uint32_t base = 0;
+  bool eof = false;
+  auto fail = [&](const std::string& why) {
+    throw std::runtime_error(fmt::format("{}:{}: {}", source, line_no, why));
+  };
+  while (std::getline(in, line)) {
+    ++line_no;
+    while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
+    if (line.empty()) continue;
+    if (eof) fail("data after the end-of-file record");
+    if (line[0] != ':') fail("record does not start with ':'");
+    if (line.size() < 11 || (line.size() - 1) % 2 != 0) fail("record too short or odd length");
+    std::vector<uint8_t> rec;
+    for (size_t i = 1; i < line.size(); i += 2) {
+      const int hi = hexval(line[i]), lo = hexval(line[i + 1]);
+      if (hi < 0 || lo < 0) fail(fmt::format("bad hex digit at column {}", i + 1));
+      rec.push_back(static_cast<uint8_t>(hi * 16 + lo));
+    }
+    const size_t len = rec[0];
+    if (rec.size() != len + 5) fail(fmt::format("length field {} does not match the record", len));
+    uint8_t sum = 0;
+    for (uint8_t b : rec) sum = static_cast<uint8_t>(sum + b);
+    if (sum != 0) fail("checksum mismatch");
+    const uint32_t addr = (static_cast<uint32_t>(rec[1]) << 8) | rec[2];
+    switch (rec[3]) {
+      case 0x00:
+        for (size_t i = 0; i < len; ++i) img.bytes[base + addr + static_cast<uint32_t>(i)] = rec[4 + i];
+        break;
+      case 0x01: eof = true; break;
+      case 0x02:
+        if (len != 2) fail("extended segment address record must have 2 bytes");
+        base = ((static_cast<uint32_t>(rec[4]) << 8) | rec[5]) << 4;
+        break;
+      case 0x04:
+        if (len != 2) fail("extended linear address record must have 2 bytes");
+        base = ((static_cast<uint32_t>(rec[4]) << 8) | rec[5]) << 16;
+        break;
+      case 0x03: case 0x05: break;  // start address: irrelevant for flash
+      default: fail(fmt::format("unknown record type 0x{:02x}", rec[3]));
+    }
+  }
+  if (!eof) throw std::runtime_error(source + ": no end-of-file record (truncated file?)");
+  return img;
+}
+
+HexImage read_intel_hex(const std::string& path) {
+  std::ifstream in(path);
+  if (!in) throw std::runtime_error("cannot open firmware image " + path + " (build it with the firmware enabled, or pass --hex)");
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return parse_intel_hex(ss.str(), path);
+}
+
+std::string format_intel_hex(const HexImage& image) {
+  std::string out;
+  auto record = [&](uint8_t type, uint16_t addr, const std::vector<uint8_t>& data) {
+    uint8_t sum = static_cast<uint8_t>(data.size() + (addr >> 8) + (addr & 0xFF) + type);
+    out += fmt::format(":{:02X}{:04X}{:02X}", data.size(), addr, type);
+    for (uint8_t b : data) {
+      out += fmt::format("{:02X}", b);
+      sum = static_cast<uint8_t>(sum + b);
+    }
+    out += fmt::format("{:02X}\n", static_cast<uint8_t>(-sum));
+  };
+  uint32_t upper = 0;
+  auto it = image.bytes.begin();
+  while (it != image.bytes.end()) {
+    const uint32_t start = it->first;
+    if ((start >> 16) != upper) {
+      upper = start >> 16;
+      record(0x04, 0, {static_cast<uint8_t>(upper >> 8), static_cast<uint8_t>(upper)});
+    }
+    std::vector<uint8_t> data;
+    uint32_t addr = start;
+    // Up to 16 contiguous bytes, not crossing a 16-byte line or a 64 KiB boundary.
+    while (it != image.bytes.end() && it->first == addr && data.size() < 16 && (data.empty() || (addr & 0xF) != 0) &&
+           (addr >> 16) == upper) {
+      data.push_back(it->second);
+      ++addr;
+      ++it;
+    }
+    record(0x00, static_cast<uint16_t>(start & 0xFFFF), data);
+  }
+  record(0x01, 0, {});
+  return out;
+}
+
+std::optional<KeyRecord> read_device_key(const HexImage& image) {
+  uint8_t rec[device_key::kRecordSize];
+  for (uint16_t i = 0; i < device_key::kRecordSize; ++i) {
+    auto it = image.bytes.find(device_key::kFlashAddress + i);
+    if (it == image.bytes.end()) return std::nullopt;
+    rec[i] = it->second;
+  }
+  if (!device_key::record_valid(rec)) return std::nullopt;
+  KeyRecord k;
+  k.device_id = get_le32(rec + device_key::kOffsetDeviceId);
+  std::copy(rec + device_key::kOffsetKey, rec + device_key::kOffsetKey + device_key::kKeySize, k.key.begin());
+  return k;
+}
+
+KeyPatchResult patch_device_key(HexImage& image, uint32_t device_id, const DeviceKey& key) {
+  static_assert(kDeviceKeySize == device_key::kKeySize, "host and firmware key sizes differ");
+  KeyPatchResult r;
+  uint8_t cur[device_key::kRecordSize];
+  bool erased = true;
+  for (uint16_t i = 0; i < device_key::kRecordSize; ++i) {
+    auto it = image.bytes.find(device_key::kFlashAddress + i);
+    if (it == image.bytes.end())
+      throw std::runtime_error(fmt::format(
+          "the image has no key record at 0x{:04X}..0x{:04X} (not a BTSM firmware image, or built without "
+          "the .btsm_key section)", device_key::kFlashAddress, device_key::kFlashAddress + device_key::kRecordSize - 1));
+    cur[i] = it->second;
+    erased = erased && cur[i] == 0xFF;
+  }
+  if (!erased) {
+    if (!device_key::record_valid(cur))
+      throw std::runtime_error(fmt::format("the image holds unexpected bytes at the key record 0x{:04X} (neither "
+                                           "erased nor a valid record): refusing to patch", device_key::kFlashAddress));
+    r.had_key = true;
+    r.previous_device_id = get_le32(cur + device_key::kOffsetDeviceId);
+  }
+  uint8_t rec[device_key::kRecordSize];
+  device_key::build_record(rec, device_id, key.data());
+  for (uint16_t i = 0; i < device_key::kRecordSize; ++i) image.bytes[device_key::kFlashAddress + i] = rec[i];
+  return r;
+}
+
+std::vector<std::string> avrdude_command(const std::string& port, const std::string& hex_path,
+                                         const std::string& avrdude) {
+  return {avrdude, "-p", "atmega328p", "-c", "arduino", "-b", "115200", "-P", port, "-D",
+          "-U", "flash:w:" + hex_path + ":i"};
+}
+
+int run_command(const std::vector<std::string>& argv) {
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = 0;
+  const int rc = posix_spawnp(&pid, args[0], nullptr, nullptr, args.data(), environ);
+  if (rc != 0) throw std::runtime_error(fmt::format("cannot start {}: {}", argv[0], std::strerror(rc)));
+  int status = 0;
+  while (waitpid(pid, &status, 0) < 0) {
+    if (errno != EINTR) throw std::runtime_error(std::string("waitpid: ") + std::strerror(errno));
+  }
+  if (WIFEXITED(status)) return WEXITSTATUS(status);
+  return 128 + (WIFSIGNALED(status) ? WTERMSIG(status) : 0);
+}
+
+void write_private_file(const std::string& path, const std::string& text) {
+  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
+  if (fd < 0) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
+  ::fchmod(fd, 0600);
+  size_t done = 0;
+  while (done < text.size()) {
+    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
+    if (n < 0) {
+      if (errno == EINTR) continue;
+      const int err = errno;
+      ::close(fd);
+      throw std::runtime_error("cannot write " + path + ": " + std::strerror(err));
+    }
+    done += static_cast<size_t>(n);
+  }
+  if (::close(fd) != 0) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
+}
+
+}  // namespace btsm::link

@@ -1,0 +1,658 @@
+// The closed residual loop (see residual_loop.hpp).
+#include "host/residual/residual_loop.hpp"
+
+#include "host/thermal/heat_inverse.hpp"
+#include "host/thermal/simulator.hpp"
+
+#include <fmt/core.h>
+
+#include <Eigen/Dense>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+#include <set>
+#include <stdexcept>
+
+namespace btsm::residual {
+namespace th = btsm::thermal;
+namespace {
+
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+constexpr int kGap = 30;  // NaN rows between concatenated recordings so no lag crosses them
+
+void say(const LoopOptions& o, const std::string& s) {
+  if (o.progress) o.progress(s);
+}
+
+std::vector<double> concat_column(const std::vector<Eigen::MatrixXd>& mats, int col) {
+  std::vector<double> v;
+  for (const auto& m : mats) {
+    if (!v.empty()) v.insert(v.end(), kGap, kNaN);
+    for (Eigen::Index k = 0; k < m.rows(); ++k) v.push_back(m(k, col));
+  }
+  return v;
+}
+
+std::vector<double> concat_signal(const std::vector<std::vector<double>>& parts) {
+  std::vector<double> v;
+  for (const auto& p : parts) {
+    if (!v.empty()) v.insert(v.end(), kGap, kNaN);
+    v.insert(v.end(), p.begin(), p.end());
+  }
+  return v;
+}
+
+double rss_of(const std::vector<Eigen::MatrixXd>& r, std::size_t& n) {
+  double s = 0;
+  n = 0;
+  for (const auto& m : r)
+    for (Eigen::Index i = 0; i < m.size(); ++i)
+      if (std::isfinite(m.data()[i])) { s += m.data()[i] * m.data()[i]; ++n; }
+  return s;
+}
+
+struct Scores {
+  double aic = 0, bic = 0;
+};
+Scores information(double rss, std::size_t n, int k) {
+  const double nn = static_cast<double>(n);
+  const double base = nn * std::log(std::max(rss, 1e-300) / nn);
+  return {base + 2.0 * k, base + k * std::log(nn)};
+}
+
+int largest_capacitance_param(const th::Network& net, const Eigen::VectorXd& p) {
+  int best = -1;
+  for (const auto& nd : net.nodes)
+    if (best < 0 || p(nd.capacitance_param) > p(best)) best = nd.capacitance_param;
+  return best;
+}
+
+// Candidate explanatory signals for one recording (aligned with its rows).
+std::vector<std::pair<std::string, std::vector<double>>> candidate_signals(const th::Network& net, const th::Recording& rec,
+                                                                            const Eigen::MatrixXd& nodes_c,
+                                                                            const std::vector<int>& measured_nodes) {
+  const std::size_t rows = rec.rows();
+  std::vector<std::pair<std::string, std::vector<double>>> s;
+  s.emplace_back("speed_rpm", rec.speed_rpm);
+  std::vector<double> since(rows), decay(rows), amb_rate(rows);
+  double last_change = rec.time_s.front(), state = 0;
+  for (std::size_t k = 0; k < rows; ++k) {
+    if (k > 0 && rec.speed_rpm[k] != rec.speed_rpm[k - 1]) last_change = rec.time_s[k];
+    since[k] = std::min(rec.time_s[k] - last_change, 4 * 3600.0);
+    if (k > 0) {
+      state *= std::exp(-(rec.time_s[k] - rec.time_s[k - 1]) / 1800.0);
+      state += std::max(0.0, rec.speed_rpm[k] - rec.speed_rpm[k - 1]) / 1000.0;
+    }
+    decay[k] = state;
+    const std::size_t a = k > 0 ? k - 1 : k, b = k + 1 < rows ? k + 1 : k;
+    amb_rate[k] = b > a ? (rec.ambient_c[b] - rec.ambient_c[a]) / (rec.time_s[b] - rec.time_s[a]) * 3600.0 : 0.0;
+  }
+  s.emplace_back("time_since_speed_change_s", since);
+  s.emplace_back("speed_increase_decay_30min", decay);
+  s.emplace_back("ambient_c", rec.ambient_c);
+  s.emplace_back("ambient_rate_K_per_h", amb_rate);
+  for (int i = 0; i < net.node_count(); ++i) {
+    std::vector<double> theta(rows), rate(rows);
+    for (std::size_t k = 0; k < rows; ++k) {
+      theta[k] = nodes_c(k, i) - rec.ambient_c[k];
+      const std::size_t a = k > 0 ? k - 1 : k, b = k + 1 < rows ? k + 1 : k;
+      rate[k] = b > a ? (nodes_c(b, i) - nodes_c(a, i)) / (rec.time_s[b] - rec.time_s[a]) * 3600.0 : 0.0;
+    }
+    s.emplace_back("theta_" + net.nodes[i].name, theta);
+    s.emplace_back("rate_" + net.nodes[i].name + "_K_per_h", rate);
+  }
+  for (std::size_t a = 0; a < measured_nodes.size(); ++a)
+    for (std::size_t b = a + 1; b < measured_nodes.size(); ++b) {
+      const int i = measured_nodes[a], j = measured_nodes[b];
+      if (i == j) continue;
+      std::vector<double> d(rows);
+      for (std::size_t k = 0; k < rows; ++k) d[k] = nodes_c(k, i) - nodes_c(k, j);
+      s.emplace_back("theta_" + net.nodes[i].name + "-" + net.nodes[j].name, d);
+    }
+  return s;
+}
+
+std::vector<std::string> columns_of(const th::Network& net) {
+  std::vector<std::string> c;
+  for (const auto& m : net.measurements) c.push_back(m.column);
+  return c;
+}
+
+std::vector<Eigen::MatrixXd> measured_of(const th::Network& net, const std::vector<th::Recording>& recs) {
+  std::vector<Eigen::MatrixXd> out;
+  for (const auto& r : recs) {
+    const std::vector<int> cols = th::measurement_columns(net, r);
+    Eigen::MatrixXd m(static_cast<Eigen::Index>(r.rows()), static_cast<Eigen::Index>(cols.size()));
+    for (std::size_t j = 0; j < cols.size(); ++j) m.col(static_cast<Eigen::Index>(j)) = r.temp_c.col(cols[j]);
+    out.push_back(m);
+  }
+  return out;
+}
+
+// Fit of one candidate (network effects or transient heat) and its scores.
+struct CandidateFit {
+  Eigen::VectorXd values;
+  std::vector<Eigen::VectorXd> x0;
+  std::vector<Eigen::MatrixXd> extra_fit, extra_check;
+  std::vector<ParamReport> params;
+  double key_z = 0;
+  int free_count = 0;
+};
+
+ParamReport report_of(const th::FitResult& fr, const th::Network& net, const std::string& name) {
+  const int i = net.param_index(name);
+  ParamReport p;
+  p.name = name;
+  p.unit = net.params[i].unit;
+  p.value = fr.estimates[i].value;
+  p.sigma = fr.estimates[i].sigma;
+  return p;
+}
+
+CandidateFit fit_network_effect(const AugmentedModel& am, const th::Network& base, const Eigen::VectorXd& base_values,
+                                const std::vector<th::Recording>& fit, const LoopOptions& o) {
+  th::FitOptions fo;
+  fo.staged = false;
+  fo.start = am.params;
+  fo.max_iterations = o.max_iterations;
+  if (!o.fit_base) fo.free_only = am.effect_params;
+  if (!std::isfinite(am.net.sum_capacitance_J_per_K) && o.fit_base) {
+    // extra nodes: pin the scale with the largest base capacitance at its base-fit value
+    const int c = largest_capacitance_param(base, base_values);
+    if (c >= 0 && !base.params[c].fixed) fo.hold.push_back(base.params[c].name);
+  }
+  const th::FitResult fr = th::fit_network(am.net, fit, fo);
+  CandidateFit cf;
+  cf.values = fr.params;
+  cf.x0 = fr.initial_states;
+  cf.free_count = fr.free_parameter_count;
+  for (const auto& name : am.effect_params) cf.params.push_back(report_of(fr, am.net, name));
+  const int k = am.net.param_index(am.key_param);
+  const double sg = fr.estimates[k].sigma;
+  cf.key_z = sg > 0 ? std::abs(fr.estimates[k].value) / sg : (std::abs(fr.estimates[k].value) > 0 ? 1e9 : 0.0);
+  return cf;
+}
+
+// heat_source_transient: the amplitude enters linearly; tau by a 1-D search; the base parameters
+// are then refitted with the transient heat as a known input (two alternations).
+CandidateFit fit_transient(const th::Network& base, const Eigen::VectorXd& base_values, const std::vector<Eigen::VectorXd>& base_x0,
+                           int node, const std::vector<th::Recording>& fit, const LoopOptions& o, TransientHeat& out) {
+  Eigen::VectorXd values = base_values;
+  std::vector<Eigen::VectorXd> x0 = base_x0;
+  const std::string nn = base.nodes[node].name;
+  auto unit_response = [&](double tau, std::vector<Eigen::MatrixXd>& r0, std::vector<Eigen::MatrixXd>& s) {
+    r0.clear();
+    s.clear();
+    for (std::size_t r = 0; r < fit.size(); ++r) {
+      const Eigen::MatrixXd h = transient_heat_w(base, fit[r], node, {1.0, tau});
+      const Eigen::MatrixXd a = th::prediction_residuals(base, values, fit[r], x0[r]);
+      const Eigen::MatrixXd b = th::prediction_residuals(base, values, fit[r], x0[r], &h);
+      r0.push_back(a);
+      s.push_back(b - a);
+    }
+  };
+  auto solve_amp = [&](double tau, double& amp, double& rss, double& ss) {
+    std::vector<Eigen::MatrixXd> r0, s;
+    unit_response(tau, r0, s);
+    double sr = 0, s2 = 0, r2 = 0;
+    for (std::size_t r = 0; r < r0.size(); ++r)
+      for (Eigen::Index i = 0; i < r0[r].size(); ++i) {
+        const double a = r0[r].data()[i], b = s[r].data()[i];
+        if (!std::isfinite(a) || !std::isfinite(b)) continue;
+        sr += a * b;
+        s2 += b * b;
+        r2 += a * a;
+      }
+    amp = s2 > 0 ? -sr / s2 : 0.0;
+    rss = r2 - (s2 > 0 ? sr * sr / s2 : 0.0);
+    ss = s2;
+  };
+  double tau = 600, amp = 0, rss = 0, s2 = 0, ltau_sigma = 0;
+  for (int round = 0; round < 2; ++round) {
+    // tau grid in log space, then golden-section refinement
+    std::vector<double> taus;
+    for (double t = 60; t <= 4 * 3600.0 + 1; t *= 2) taus.push_back(t);
+    std::vector<double> rs(taus.size());
+    for (std::size_t i = 0; i < taus.size(); ++i) { double a2, s22; solve_amp(taus[i], a2, rs[i], s22); }
+    const std::size_t best = static_cast<std::size_t>(std::min_element(rs.begin(), rs.end()) - rs.begin());
+    double a = std::log(taus[best > 0 ? best - 1 : 0]), b = std::log(taus[std::min(best + 1, taus.size() - 1)]);
+    const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
+    double c = b - gr * (b - a), d = a + gr * (b - a), fc, fd, tmp1, tmp2;
+    solve_amp(std::exp(c), tmp1, fc, tmp2);
+    solve_amp(std::exp(d), tmp1, fd, tmp2);
+    for (int it = 0; it < 12; ++it) {
+      if (fc < fd) { b = d; d = c; fd = fc; c = b - gr * (b - a); solve_amp(std::exp(c), tmp1, fc, tmp2); }
+      else { a = c; c = d; fc = fd; d = a + gr * (b - a); solve_amp(std::exp(d), tmp1, fd, tmp2); }
+    }
+    tau = std::exp(fc < fd ? c : d);
+    solve_amp(tau, amp, rss, s2);
+    // curvature of RSS in log tau -> 1 sigma of log tau
+    const double h = 0.1;
+    double rp, rm, t1, t2;
+    solve_amp(tau * std::exp(h), t1, rp, t2);
+    solve_amp(tau * std::exp(-h), t1, rm, t2);
+    const double curv = (rp - 2 * rss + rm) / (h * h);
+    std::size_t n = 0;
+    for (const auto& r : fit) n += static_cast<std::size_t>(r.temp_c.size());
+    const double s2hat = rss / std::max<double>(1.0, static_cast<double>(n));
+    ltau_sigma = curv > 0 ? std::sqrt(2.0 * s2hat / curv) : kNaN;
+    if (round == 1 || !o.fit_base) break;
+    // refit the base with the transient heat as a known input
+    th::FitOptions fo;
+    fo.staged = false;
+    fo.start = values;
+    fo.max_iterations = o.max_iterations;
+    for (const auto& r : fit) fo.extra_heat_w.push_back(transient_heat_w(base, r, node, {amp, tau}));
+    const th::FitResult fr = th::fit_network(base, fit, fo);
+    values = fr.params;
+    x0 = fr.initial_states;
+  }
+  CandidateFit cf;
+  cf.values = values;
+  cf.x0 = x0;
+  out = {amp, tau};
+  for (const auto& r : fit) cf.extra_fit.push_back(transient_heat_w(base, r, node, out));
+  std::size_t n = 0;
+  for (const auto& r : fit) n += static_cast<std::size_t>(r.temp_c.size());
+  const double amp_sigma = s2 > 0 ? std::sqrt(rss / std::max<double>(1.0, static_cast<double>(n)) / s2) : kNaN;
+  cf.params.push_back({"a_transient_" + nn, "W per 1000 rpm increase", amp, amp_sigma});
+  cf.params.push_back({"tau_transient_" + nn, "s", tau, tau * ltau_sigma});
+  cf.key_z = amp_sigma > 0 ? std::abs(amp) / amp_sigma : 0.0;
+  cf.free_count = 2;
+  return cf;
+}
+
+}  // namespace
+
+Evaluation evaluate_model(const th::Network& net, const Eigen::VectorXd& params, const th::Recording& rec,
+                          const Eigen::MatrixXd* extra, const Eigen::VectorXd* x0_given) {
+  Evaluation ev;
+  const int n = net.node_count();
+  Eigen::VectorXd x0;
+  if (x0_given) {
+    x0 = *x0_given;
+  } else {
+    // r(x0) = pred - meas is affine in x0: solve the least-squares initial state (small ridge
+    // towards the first-sample guess for nodes the data barely see).
+    const Eigen::VectorXd guess = th::first_sample_state(net, rec);
+    const Eigen::MatrixXd r0 = th::prediction_residuals(net, params, rec, guess, extra);
+    std::vector<Eigen::MatrixXd> cols;
+    for (int i = 0; i < n; ++i) {
+      Eigen::VectorXd xi = guess;
+      xi(i) += 1.0;
+      cols.push_back(th::prediction_residuals(net, params, rec, xi, extra) - r0);
+    }
+    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
+    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
+    for (Eigen::Index k = 0; k < r0.size(); ++k) {
+      if (!std::isfinite(r0.data()[k])) continue;
+      for (int i = 0; i < n; ++i) {
+        b(i) -= cols[i].data()[k] * r0.data()[k];
+        for (int j = 0; j < n; ++j) A(i, j) += cols[i].data()[k] * cols[j].data()[k];
+      }
+    }
+    A.diagonal().array() += 1e-9 * std::max(A.trace() / n, 1e-12);
+    x0 = guess + A.ldlt().solve(b);
+  }
+  ev.x0_c = x0;
+  ev.nodes_c = th::simulate_recording(net, params, rec, x0, extra);
+  const std::vector<int> cols = th::measurement_columns(net, rec);
+  const Eigen::Index rows = static_cast<Eigen::Index>(rec.rows());
+  ev.model_c.resize(rows, static_cast<Eigen::Index>(cols.size()));
+  ev.residual_k.resize(rows, static_cast<Eigen::Index>(cols.size()));
+  for (std::size_t j = 0; j < cols.size(); ++j) {
+    ev.model_c.col(j) = ev.nodes_c.col(net.measurements[j].node);
+    for (Eigen::Index k = 0; k < rows; ++k) {
+      const double y = rec.temp_c(k, cols[j]);
+      ev.residual_k(k, j) = std::isfinite(y) ? y - ev.model_c(k, j) : kNaN;
+    }
+  }
+  return ev;
+}
+
+ErrorMetrics error_metrics(const std::vector<Eigen::MatrixXd>& res, const std::vector<Eigen::MatrixXd>& meas) {
+  ErrorMetrics m;
+  double ss = 0;
+  m.nmse_min = std::numeric_limits<double>::infinity();
+  const Eigen::Index nc = res.empty() ? 0 : res[0].cols();
+  for (Eigen::Index c = 0; c < nc; ++c) {
+    double se = 0, sy = 0, syy = 0;
+    std::size_t cnt = 0;
+    for (std::size_t r = 0; r < res.size(); ++r)
+      for (Eigen::Index k = 0; k < res[r].rows(); ++k) {
+        const double e = res[r](k, c), y = meas[r](k, c);
+        if (!std::isfinite(e) || !std::isfinite(y)) continue;
+        se += e * e;
+        sy += y;
+        syy += y * y;
+        ++cnt;
+        m.max_abs_k = std::max(m.max_abs_k, std::abs(e));
+      }
+    if (cnt == 0) continue;
+    ss += se;
+    m.cells += cnt;
+    const double var = syy - sy * sy / static_cast<double>(cnt);
+    if (var > 0) m.nmse_min = std::min(m.nmse_min, 1.0 - se / var);
+  }
+  m.rmse_k = m.cells ? std::sqrt(ss / static_cast<double>(m.cells)) : kNaN;
+  if (!std::isfinite(m.nmse_min)) m.nmse_min = kNaN;
+  return m;
+}
+
+LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& base_params_in, const std::vector<th::Recording>& fit,
+                             const std::vector<th::Recording>& check, const LoopOptions& o) {
+  const auto t_start = std::chrono::steady_clock::now();
+  if (fit.empty()) throw std::invalid_argument("residual: no fit recordings (--fit)");
+  if (check.empty()) throw std::invalid_argument("residual: no check recordings (--check)");
+  base.validate();
+  for (const auto& r : fit) th::measurement_columns(base, r);    // throws naming a missing column
+  for (const auto& r : check) th::measurement_columns(base, r);
+  LoopResult L;
+  L.base_net = base;
+  L.columns = columns_of(base);
+  const int n = base.node_count();
+  const int nc = static_cast<int>(L.columns.size());
+
+  // 1. base model
+  Eigen::VectorXd bp;
+  std::vector<Eigen::VectorXd> bx0;
+  int base_free = 0;
+  if (o.fit_base) {
+    say(o, "residual: fitting the base model on " + std::to_string(fit.size()) + " recording(s)");
+    th::FitOptions fo;
+    fo.max_iterations = std::max(o.max_iterations, 60);
+    fo.progress = o.progress;
+    if (base_params_in.size() == base.param_count()) fo.start = base_params_in;
+    L.base_fit = th::fit_network(base, fit, fo);
+    bp = L.base_fit.params;
+    bx0 = L.base_fit.initial_states;
+    base_free = L.base_fit.free_parameter_count;
+  } else {
+    if (base_params_in.size() != base.param_count()) throw std::invalid_argument("residual: the base model needs a value for every parameter");
+    bp = base_params_in;
+    for (const auto& r : fit) bx0.push_back(evaluate_model(base, bp, r).x0_c);
+    L.base_fit.params = bp;
+  }
+  const std::vector<Eigen::MatrixXd> meas_fit = measured_of(base, fit), meas_check = measured_of(base, check);
+  std::vector<Eigen::MatrixXd> nodes_fit;
+  for (std::size_t r = 0; r < fit.size(); ++r) {
+    Evaluation ev = evaluate_model(base, bp, fit[r], nullptr, &bx0[r]);
+    L.fit_resid_before.push_back(ev.residual_k);
+    nodes_fit.push_back(ev.nodes_c);
+  }
+  std::vector<Eigen::MatrixXd> nodes_check;
+  for (const auto& r : check) {
+    Evaluation ev = evaluate_model(base, bp, r);
+    L.check_resid_before.push_back(ev.residual_k);
+    L.check_model_before.push_back(ev.model_c);
+    nodes_check.push_back(ev.nodes_c);
+  }
+  L.before_fit = error_metrics(L.fit_resid_before, meas_fit);
+  L.before_check = error_metrics(L.check_resid_before, meas_check);
+  std::size_t n_fit = 0;
+  const double rss_base = rss_of(L.fit_resid_before, n_fit);
+  const int k_base = base_free + n * static_cast<int>(fit.size());
+  const Scores s_base = information(rss_base, n_fit, k_base);
+  {
+    std::vector<double> sig;
+    for (const auto& m : meas_fit) sig.push_back(th::estimate_noise_sigma(m));
+    std::sort(sig.begin(), sig.end());
+    L.noise_sigma_k = sig[sig.size() / 2];
+  }
+  say(o, fmt::format("residual: base rms {:.4g} K (fit), {:.4g} K (check); noise {:.3g} K", L.before_fit.rmse_k,
+                     L.before_check.rmse_k, L.noise_sigma_k));
+
+  // 2. residual tests
+  std::vector<int> measured_nodes;
+  for (const auto& m : base.measurements) measured_nodes.push_back(m.node);
+  std::vector<std::vector<std::pair<std::string, std::vector<double>>>> sig_parts;
+  for (std::size_t r = 0; r < fit.size(); ++r) sig_parts.push_back(candidate_signals(base, fit[r], nodes_fit[r], measured_nodes));
+  for (std::size_t r = 0; r < check.size(); ++r) sig_parts.push_back(candidate_signals(base, check[r], nodes_check[r], measured_nodes));
+  std::vector<Eigen::MatrixXd> all_res = L.fit_resid_before;
+  all_res.insert(all_res.end(), L.check_resid_before.begin(), L.check_resid_before.end());
+  std::vector<std::vector<double>> speed_parts;
+  for (const auto& r : fit) speed_parts.push_back(r.speed_rpm);
+  for (const auto& r : check) speed_parts.push_back(r.speed_rpm);
+  const std::vector<double> speed_all = concat_signal(speed_parts);
+  bool all_white = true;
+  std::vector<double> rate_corr(nc, 0.0);
+  for (int c = 0; c < nc; ++c) {
+    ChannelDiagnostics d;
+    d.column = L.columns[c];
+    d.node = base.nodes[base.measurements[c].node].name;
+    const std::vector<double> e = concat_column(all_res, c);
+    d.all = ljung_box(e);
+    std::vector<double> eo = e, ec = e;
+    for (std::size_t k = 0; k < e.size(); ++k) {
+      if (!std::isfinite(speed_all[k])) continue;
+      (base.mode_at(speed_all[k]) == th::Mode::Operating ? ec : eo)[k] = kNaN;
+    }
+    d.operating = ljung_box(eo);
+    d.cooling = ljung_box(ec);
+    d.white = !(d.all.p_value < o.whiteness_p / nc);
+    all_white = all_white && d.white;
+    const std::size_t nsig = sig_parts[0].size();
+    for (std::size_t s = 0; s < nsig; ++s) {
+      std::vector<std::vector<double>> parts;
+      for (const auto& p : sig_parts) parts.push_back(p[s].second);
+      const CorrelationTest t = correlation_test(sig_parts[0][s].first, e, concat_signal(parts));
+      if (sig_parts[0][s].first == "rate_" + d.node + "_K_per_h") rate_corr[c] = std::abs(t.r);
+      if (t.p_value < o.correlation_p) d.correlations.push_back(t);
+    }
+    std::sort(d.correlations.begin(), d.correlations.end(), [](const auto& a, const auto& b) { return std::abs(a.r) > std::abs(b.r); });
+    if (d.correlations.size() > 5) d.correlations.resize(5);
+    L.diagnostics.push_back(d);
+  }
+
+  // 3. trace: unexplained heat flow at the measured nodes (inverse method on the residual)
+  try {
+    std::vector<int> trace_nodes;
+    for (int m : measured_nodes)
+      if (std::find(trace_nodes.begin(), trace_nodes.end(), m) == trace_nodes.end()) trace_nodes.push_back(m);
+    std::sort(trace_nodes.begin(), trace_nodes.end());
+    th::InverseProblem ip = th::make_inverse_problem(base, bp, fit[0], trace_nodes, true);
+    ip.initial_state_c = bx0[0];
+    th::HeatInverseOptions ho;
+    std::vector<double> dts;
+    for (std::size_t k = 1; k < fit[0].rows(); ++k) dts.push_back(fit[0].time_s[k] - fit[0].time_s[k - 1]);
+    std::nth_element(dts.begin(), dts.begin() + dts.size() / 2, dts.end());
+    ho.step_s = o.trace_step_s > 0 ? o.trace_step_s : std::max(60.0, 10.0 * dts[dts.size() / 2]);
+    ho.scheme = th::Discretisation::ExactZoh;
+    ho.alpha_points = 25;
+    const th::HeatInverseResult hr = th::solve_heat_inverse(ip, ho);
+    for (std::size_t j = 0; j < trace_nodes.size(); ++j) {
+      NodeTrace t;
+      t.node = base.nodes[trace_nodes[j]].name;
+      t.time_s = hr.piece_start_s;
+      for (Eigen::Index i = 0; i < hr.heat_w.rows(); ++i) t.heat_w.push_back(hr.heat_w(i, j));
+      t.rms_w = std::sqrt(hr.heat_w.col(j).squaredNorm() / std::max<Eigen::Index>(1, hr.heat_w.rows()));
+      L.trace.push_back(t);
+    }
+  } catch (const std::exception& e) {
+    say(o, std::string("residual: heat trace skipped: ") + e.what());
+  }
+
+  // 4. candidates
+  const std::vector<EffectKind> kinds = o.effects.empty() ? all_effect_kinds() : o.effects;
+  std::vector<int> ranked_nodes;  // by traced unexplained heat
+  {
+    std::vector<std::pair<double, int>> v;
+    for (const auto& t : L.trace) v.emplace_back(-t.rms_w, base.node_index(t.node));
+    std::sort(v.begin(), v.end());
+    for (const auto& p : v) ranked_nodes.push_back(p.second);
+    for (int i = 0; i < n; ++i)
+      if (std::find(ranked_nodes.begin(), ranked_nodes.end(), i) == ranked_nodes.end()) ranked_nodes.push_back(i);
+  }
+  std::vector<int> source_nodes;
+  for (int i : ranked_nodes)
+    for (const auto& s : base.sources)
+      if (s.node == i && std::find(source_nodes.begin(), source_nodes.end(), i) == source_nodes.end()) source_nodes.push_back(i);
+  if (source_nodes.empty()) source_nodes = ranked_nodes;
+  std::vector<EffectSpec> specs;
+  for (EffectKind k : kinds) {
+    switch (k) {
+      case EffectKind::HeatSourceTransient:
+      case EffectKind::TemperatureDependentHeat:
+        for (std::size_t i = 0; i < source_nodes.size() && static_cast<int>(i) < o.max_heat_nodes; ++i) specs.push_back({k, source_nodes[i], ""});
+        break;
+      case EffectKind::ExtraHeatInput:
+        for (std::size_t i = 0; i < ranked_nodes.size() && static_cast<int>(i) < o.max_heat_nodes; ++i) specs.push_back({k, ranked_nodes[i], ""});
+        break;
+      case EffectKind::SensorLag: {
+        std::vector<std::pair<double, int>> v;
+        for (int c = 0; c < nc; ++c) v.emplace_back(-rate_corr[c], c);
+        std::sort(v.begin(), v.end());
+        std::set<std::string> seen;
+        for (const auto& p : v) {
+          if (static_cast<int>(seen.size()) >= o.max_sensor_columns) break;
+          if (!seen.insert(L.columns[p.second]).second) continue;
+          specs.push_back({k, base.measurements[p.second].node, L.columns[p.second]});
+        }
+        break;
+      }
+      case EffectKind::AmbientDynamics: {
+        bool has_amb = false;
+        for (const auto& l : base.links) has_amb = has_amb || l.b == th::kAmbient;
+        if (has_amb) specs.push_back({k, -1, ""});
+        break;
+      }
+    }
+  }
+
+  for (const EffectSpec& spec : specs) {
+    CandidateResult cr;
+    cr.label = effect_label(spec, base);
+    cr.effect = effect_name(spec.kind);
+    cr.nodes = effect_nodes(spec, base);
+    say(o, "residual: trying " + cr.label);
+    try {
+      CandidateFit cf;
+      AugmentedModel am;
+      if (spec.kind == EffectKind::HeatSourceTransient) {
+        TransientHeat h;
+        cf = fit_transient(base, bp, bx0, spec.node, fit, o, h);
+        am.net = base;
+        cr.transient = h;
+        cr.transient_node = spec.node;
+      } else {
+        am = augment(base, bp, spec);
+        cf = fit_network_effect(am, base, bp, fit, o);
+      }
+      cr.net = spec.kind == EffectKind::HeatSourceTransient ? base : am.net;
+      cr.values = cf.values;
+      cr.params = cf.params;
+      cr.key_z = cf.key_z;
+      std::vector<Eigen::MatrixXd> rf, rc;
+      for (std::size_t r = 0; r < fit.size(); ++r) {
+        const Eigen::MatrixXd* ex = cf.extra_fit.empty() ? nullptr : &cf.extra_fit[r];
+        rf.push_back(evaluate_model(cr.net, cr.values, fit[r], ex, &cf.x0[r]).residual_k);
+      }
+      for (const auto& r : check) {
+        Eigen::MatrixXd ex;
+        if (cr.transient_node >= 0) ex = transient_heat_w(base, r, cr.transient_node, cr.transient);
+        rc.push_back(evaluate_model(cr.net, cr.values, r, cr.transient_node >= 0 ? &ex : nullptr).residual_k);
+      }
+      cr.fit = error_metrics(rf, meas_fit);
+      cr.check = error_metrics(rc, meas_check);
+      std::size_t nn = 0;
+      const double rss = rss_of(rf, nn);
+      const int k = (o.fit_base ? (spec.kind == EffectKind::HeatSourceTransient ? base_free + 2 : cf.free_count)
+                                : static_cast<int>(cf.params.size())) +
+                    cr.net.node_count() * static_cast<int>(fit.size());
+      const Scores s = information(rss, nn, k);
+      cr.aic = s.aic;
+      cr.bic = s.bic;
+      cr.delta_bic = s_base.bic - s.bic;
+      cr.check_factor = cr.check.rmse_k > 0 ? L.before_check.rmse_k / cr.check.rmse_k : 0;
+      const bool b_ok = cr.delta_bic >= o.bic_margin, c_ok = cr.check_factor >= o.check_improvement, z_ok = cr.key_z >= o.param_z;
+      cr.accepted = b_ok && c_ok && z_ok;
+      cr.reason = fmt::format("dBIC {:.1f} {} {:.0f}; check x{:.2f} {} {:.2f}; key |z| {:.1f} {} {:.0f}", cr.delta_bic,
+                              b_ok ? ">=" : "<", o.bic_margin, cr.check_factor, c_ok ? ">=" : "<", o.check_improvement,
+                              cr.key_z, z_ok ? ">=" : "<", o.param_z);
+    } catch (const std::exception& e) {
+      cr.accepted = false;
+      cr.reason = std::string("fit failed: ") + e.what();
+    }
+    say(o, "residual:   " + cr.label + ": " + cr.reason);
+    L.candidates.push_back(std::move(cr));
+  }
+
+  // 5. decision
+  for (std::size_t i = 0; i < L.candidates.size(); ++i) {
+    const auto& c = L.candidates[i];
+    if (!c.accepted) continue;
+    if (L.chosen < 0 || c.check.rmse_k < L.candidates[L.chosen].check.rmse_k * (1 - 1e-9) ||
+        (std::abs(c.check.rmse_k - L.candidates[L.chosen].check.rmse_k) <= 1e-9 * c.check.rmse_k && c.bic < L.candidates[L.chosen].bic))
+      L.chosen = static_cast<int>(i);
+  }
+  L.fit_resid_after = L.fit_resid_before;
+  L.check_resid_after = L.check_resid_before;
+  L.check_model_after = L.check_model_before;
+  L.after_fit = L.before_fit;
+  L.after_check = L.before_check;
+  const bool big = L.before_check.rmse_k > o.significant_rms_factor * L.noise_sigma_k ||
+                   L.before_fit.rmse_k > o.significant_rms_factor * L.noise_sigma_k;
+  if (L.chosen >= 0) {
+    const CandidateResult& c = L.candidates[L.chosen];
+    L.effect = c.effect;
+    L.label = c.label;
+    L.nodes = c.nodes;
+    L.params = c.params;
+    L.fit_resid_after.clear();
+    L.check_resid_after.clear();
+    L.check_model_after.clear();
+    for (std::size_t r = 0; r < fit.size(); ++r) {
+      Eigen::MatrixXd ex;
+      if (c.transient_node >= 0) ex = transient_heat_w(base, fit[r], c.transient_node, c.transient);
+      L.fit_resid_after.push_back(evaluate_model(c.net, c.values, fit[r], c.transient_node >= 0 ? &ex : nullptr).residual_k);
+    }
+    for (const auto& r : check) {
+      Eigen::MatrixXd ex;
+      if (c.transient_node >= 0) ex = transient_heat_w(base, r, c.transient_node, c.transient);
+      const Evaluation ev = evaluate_model(c.net, c.values, r, c.transient_node >= 0 ? &ex : nullptr);
+      L.check_resid_after.push_back(ev.residual_k);
+      L.check_model_after.push_back(ev.model_c);
+      if (c.effect == "sensor_lag") {
+        // measurement distortion = probe temperature - temperature of the node it sits on
+        Eigen::MatrixXd d = Eigen::MatrixXd::Constant(ev.model_c.rows(), nc, 0.0);
+        for (int j = 0; j < nc; ++j) {
+          const int probe_node = c.net.measurements[j].node, true_node = base.measurements[j].node;
+          d.col(j) = ev.nodes_c.col(probe_node) - ev.nodes_c.col(true_node);
+        }
+        L.check_distortion.push_back(d);
+      }
+    }
+    L.after_fit = error_metrics(L.fit_resid_after, meas_fit);
+    L.after_check = error_metrics(L.check_resid_after, meas_check);
+    L.explanation = fmt::format("{} explains the residual: check rmse {:.4g} -> {:.4g} K (x{:.1f}), dBIC {:.1f}", c.label,
+                                L.before_check.rmse_k, L.after_check.rmse_k, c.check_factor, c.delta_bic);
+  } else if (all_white && !big) {
+    L.effect = "none";
+    L.label = "none";
+    L.explanation = fmt::format("the residual is white noise (Ljung-Box p >= {:.3g} on every channel, rms {:.3g} K vs noise {:.3g} K); "
+                                "no effect improves the model significantly",
+                                o.whiteness_p / nc, L.before_check.rmse_k, L.noise_sigma_k);
+  } else {
+    L.effect = "unexplained";
+    L.label = "unexplained";
+    std::vector<std::pair<double, std::string>> worst;
+    for (int c = 0; c < nc; ++c) {
+      const auto& d = L.diagnostics[c];
+      if (!d.white || d.all.rms > o.significant_rms_factor * L.noise_sigma_k) worst.emplace_back(-d.all.rms, d.node);
+      for (const auto& t : d.correlations)
+        if (std::find(L.correlated_signals.begin(), L.correlated_signals.end(), t.signal) == L.correlated_signals.end())
+          L.correlated_signals.push_back(t.signal);
+    }
+    std::sort(worst.begin(), worst.end());
+    for (const auto& w : worst)
+      if (std::find(L.nodes.begin(), L.nodes.end(), w.second) == L.nodes.end()) L.nodes.push_back(w.second);
+    L.explanation = "significant residual structure that no effect of the library explains (none passed BIC + check + "
+                    "significance); see the nodes and correlated signals";
+  }
+  L.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
+  return L;
+}
+
+}  // namespace btsm::residual

@@ -1,0 +1,219 @@
+// Residual loop report (see residual_report.hpp).
+#include "host/residual/residual_report.hpp"
+
+#ifdef BTSM_RESIDUAL_HAVE_REPORT
+#include "host/report/plot.hpp"
+#endif
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <cmath>
+#include <filesystem>
+#include <fstream>
+#include <sstream>
+#include <stdexcept>
+
+namespace btsm::residual {
+namespace {
+
+nlohmann::json num(double v) { return std::isfinite(v) ? nlohmann::json(v) : nlohmann::json(nullptr); }
+
+nlohmann::json metrics_json(const ErrorMetrics& m) {
+  return {{"rmse_K", num(m.rmse_k)}, {"nmse_min", num(m.nmse_min)}, {"max_abs_K", num(m.max_abs_k)}, {"cells", m.cells}};
+}
+
+nlohmann::json params_json(const std::vector<ParamReport>& ps) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& p : ps) a.push_back({{"name", p.name}, {"unit", p.unit}, {"value", num(p.value)}, {"sigma", num(p.sigma)}});
+  return a;
+}
+
+std::string join(const std::vector<std::string>& v, const char* sep = ", ") {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : sep) + x;
+  return s;
+}
+
+}  // namespace
+
+nlohmann::json to_json(const LoopResult& r) {
+  nlohmann::json j;
+  j["effect"] = r.effect;
+  j["label"] = r.label;
+  j["nodes"] = r.nodes;
+  j["parameters"] = params_json(r.params);
+  j["explanation"] = r.explanation;
+  j["noise_sigma_K"] = num(r.noise_sigma_k);
+  j["rmse_before_K"] = num(r.before_check.rmse_k);
+  j["rmse_after_K"] = num(r.after_check.rmse_k);
+  j["nmse_before"] = num(r.before_check.nmse_min);
+  j["nmse_after"] = num(r.after_check.nmse_min);
+  j["max_error_before_K"] = num(r.before_check.max_abs_k);
+  j["max_error_after_K"] = num(r.after_check.max_abs_k);
+  j["fit"] = {{"before", metrics_json(r.before_fit)}, {"after", metrics_json(r.after_fit)}};
+  j["check"] = {{"before", metrics_json(r.before_check)}, {"after", metrics_json(r.after_check)}};
+  j["correlated_signals"] = r.correlated_signals;
+  j["candidates"] = nlohmann::json::array();
+  for (const auto& c : r.candidates)
+    j["candidates"].push_back({{"label", c.label}, {"effect", c.effect}, {"nodes", c.nodes}, {"check_rmse_K", num(c.check.rmse_k)},
+                               {"fit_rmse_K", num(c.fit.rmse_k)}, {"aic", num(c.aic)}, {"bic", num(c.bic)},
+                               {"delta_bic", num(c.delta_bic)}, {"check_factor", num(c.check_factor)}, {"key_z", num(c.key_z)},
+                               {"accepted", c.accepted}, {"reason", c.reason}, {"parameters", params_json(c.params)}});
+  j["diagnostics"] = nlohmann::json::array();
+  for (const auto& d : r.diagnostics) {
+    nlohmann::json cj = {{"column", d.column}, {"node", d.node}, {"rms_K", num(d.all.rms)}, {"lag1", num(d.all.lag1)},
+                         {"ljung_box_p", num(d.all.p_value)}, {"operating_p", num(d.operating.p_value)},
+                         {"cooling_p", num(d.cooling.p_value)}, {"white", d.white}};
+    cj["correlations"] = nlohmann::json::array();
+    for (const auto& t : d.correlations) cj["correlations"].push_back({{"signal", t.signal}, {"r", num(t.r)}, {"p", num(t.p_value)}});
+    j["diagnostics"].push_back(cj);
+  }
+  j["trace"] = nlohmann::json::array();
+  for (const auto& t : r.trace) j["trace"].push_back({{"node", t.node}, {"rms_W", num(t.rms_w)}});
+  nlohmann::json bf;
+  bf["rms_K"] = num(r.base_fit.rms_K);
+  bf["converged"] = r.base_fit.converged;
+  bf["gauge"] = r.base_fit.gauge;
+  bf["parameters"] = nlohmann::json::array();
+  for (const auto& e : r.base_fit.estimates)
+    bf["parameters"].push_back({{"name", e.name}, {"unit", e.unit}, {"value", num(e.value)}, {"sigma", num(e.sigma)},
+                                {"status", thermal::identifiability_name(e.status)}});
+  j["base_fit"] = bf;
+  j["seconds"] = r.seconds;
+  return j;
+}
+
+std::string format_table(const LoopResult& r) {
+  std::ostringstream o;
+  o << fmt::format("Residual loop on network '{}' ({} measured columns), noise sigma {:.3g} K\n", r.base_net.name, r.columns.size(),
+                   r.noise_sigma_k);
+  o << "\nResidual tests of the base model (fit + check recordings; LB = Ljung-Box p-value):\n";
+  o << fmt::format("  {:<10} {:<16} {:>9} {:>6} {:>9} {:>9} {:>9} {:>6}  {}\n", "column", "node", "rms [K]", "lag1", "LB all",
+                   "LB oper.", "LB cool", "white", "strongest correlations (r)");
+  for (const auto& d : r.diagnostics) {
+    std::string cs;
+    for (std::size_t i = 0; i < d.correlations.size() && i < 3; ++i)
+      cs += (i ? ", " : "") + fmt::format("{} {:+.2f}", d.correlations[i].signal, d.correlations[i].r);
+    o << fmt::format("  {:<10} {:<16} {:>9.4f} {:>6.2f} {:>9.2g} {:>9.2g} {:>9.2g} {:>6}  {}\n", d.column, d.node, d.all.rms, d.all.lag1,
+                     d.all.p_value, d.operating.p_value, d.cooling.p_value, d.white ? "yes" : "no", cs);
+  }
+  if (!r.trace.empty()) {
+    o << "\nUnexplained heat flow (inverse method on the residual, first fit recording), rms per node:\n";
+    for (const auto& t : r.trace) o << fmt::format("  {:<16} {:>9.3f} W\n", t.node, t.rms_w);
+  }
+  o << "\nCandidate effects (fit on --fit, scored on --check):\n";
+  o << fmt::format("  {:<36} {:>10} {:>11} {:>7} {:>9} {:>7} {:>5}\n", "effect", "fit [K]", "check [K]", "factor", "dBIC", "|z|", "claim");
+  for (const auto& c : r.candidates)
+    o << fmt::format("  {:<36} {:>10.4f} {:>11.4f} {:>7.2f} {:>9.1f} {:>7.1f} {:>5}\n", c.label, c.fit.rmse_k, c.check.rmse_k,
+                     c.check_factor, c.delta_bic, c.key_z, c.accepted ? "yes" : "no");
+  o << "\nVerdict: " << r.label;
+  if (!r.nodes.empty()) o << "  (nodes: " << join(r.nodes) << ")";
+  o << "\n  " << r.explanation << "\n";
+  for (const auto& p : r.params) o << fmt::format("  {:<32} = {:.5g} ± {:.2g} {}\n", p.name, p.value, p.sigma, p.unit);
+  if (!r.correlated_signals.empty()) o << "  correlated signals: " << join(r.correlated_signals) << "\n";
+  o << fmt::format("\n  {:<22} {:>10} {:>10} {:>10}\n", "errors", "RMSE [K]", "NMSE min", "max [K]");
+  auto row = [&](const char* name, const ErrorMetrics& m) {
+    o << fmt::format("  {:<22} {:>10.4f} {:>10.6f} {:>10.4f}\n", name, m.rmse_k, m.nmse_min, m.max_abs_k);
+  };
+  row("fit, before", r.before_fit);
+  row("fit, after", r.after_fit);
+  row("check, before", r.before_check);
+  row("check, after", r.after_check);
+  return o.str();
+}
+
+void write_report(const LoopResult& r, const std::vector<thermal::Recording>& check, const std::string& dir) {
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw std::runtime_error("cannot create report directory " + dir + ": " + ec.message());
+  {
+    std::ofstream f(dir + "/residual_result.json");
+    if (!f) throw std::runtime_error("cannot write " + dir + "/residual_result.json");
+    f << to_json(r).dump(2) << "\n";
+  }
+  {
+    std::ofstream f(dir + "/residual_table.txt");
+    if (!f) throw std::runtime_error("cannot write " + dir + "/residual_table.txt");
+    f << format_table(r);
+  }
+#ifdef BTSM_RESIDUAL_HAVE_REPORT
+  namespace rp = btsm::report;
+  if (check.empty() || r.check_resid_before.empty()) return;
+  const thermal::Recording& rec = check[0];
+  const int nc = static_cast<int>(r.columns.size());
+  const int stride = std::max<int>(1, static_cast<int>(rec.rows() / 3000));
+  // the (up to) four columns with the largest residual before
+  std::vector<std::pair<double, int>> order;
+  for (int c = 0; c < nc; ++c) {
+    double ss = 0;
+    int n = 0;
+    for (Eigen::Index k = 0; k < r.check_resid_before[0].rows(); ++k)
+      if (std::isfinite(r.check_resid_before[0](k, c))) { ss += std::pow(r.check_resid_before[0](k, c), 2); ++n; }
+    order.emplace_back(-(n ? ss / n : 0), c);
+  }
+  std::sort(order.begin(), order.end());
+  std::vector<rp::Plot> model_panels;
+  for (std::size_t i = 0; i < order.size() && i < 4; ++i) {
+    const int c = order[i].second;
+    rp::Plot p{fmt::format("{} ({}): measured vs base vs {} (check recording {})", r.columns[c], r.diagnostics[c].node, r.label, rec.source),
+               "time [h]", "temperature [degC]", {}, false};
+    rp::Series m{"measured", {}, {}, rp::Series::Style::Points}, b{"base model", {}, {}, rp::Series::Style::Line},
+        a{"with " + r.label, {}, {}, rp::Series::Style::Line};
+    for (std::size_t k = 0; k < rec.rows(); k += stride) {
+      const double t = rec.time_s[k] / 3600.0;
+      const double y = std::isfinite(r.check_resid_before[0](k, c)) ? r.check_model_before[0](k, c) + r.check_resid_before[0](k, c) : NAN;
+      m.x.push_back(t); m.y.push_back(y);
+      b.x.push_back(t); b.y.push_back(r.check_model_before[0](k, c));
+      a.x.push_back(t); a.y.push_back(r.check_model_after[0](k, c));
+    }
+    p.series = {m, b};
+    if (r.chosen >= 0) p.series.push_back(a);
+    model_panels.push_back(p);
+  }
+  rp::save_panels(model_panels, dir + "/residual_model");
+  std::vector<rp::Plot> res_panels;
+  auto residual_plot = [&](const std::vector<Eigen::MatrixXd>& res, const std::string& title) {
+    rp::Plot p{title, "time [h]", "measured - model [K]", {}, false};
+    for (int c = 0; c < nc; ++c) {
+      rp::Series s{r.columns[c], {}, {}, rp::Series::Style::Line};
+      for (std::size_t k = 0; k < rec.rows(); k += stride) {
+        s.x.push_back(rec.time_s[k] / 3600.0);
+        s.y.push_back(res[0](k, c));
+      }
+      p.series.push_back(s);
+    }
+    return p;
+  };
+  res_panels.push_back(residual_plot(r.check_resid_before, "Residuals of the base model (check recording " + rec.source + ")"));
+  if (r.chosen >= 0) res_panels.push_back(residual_plot(r.check_resid_after, "Residuals with " + r.label));
+  if (!r.check_distortion.empty()) {
+    rp::Plot p{"Estimated measurement distortion (probe - node temperature)", "time [h]", "distortion [K]", {}, false};
+    for (int c = 0; c < nc; ++c) {
+      if (r.check_distortion[0].col(c).cwiseAbs().maxCoeff() == 0) continue;
+      rp::Series s{r.columns[c], {}, {}, rp::Series::Style::Line};
+      for (std::size_t k = 0; k < rec.rows(); k += stride) {
+        s.x.push_back(rec.time_s[k] / 3600.0);
+        s.y.push_back(r.check_distortion[0](k, c));
+      }
+      p.series.push_back(s);
+    }
+    res_panels.push_back(p);
+  }
+  rp::save_panels(res_panels, dir + "/residual_residuals");
+  if (!r.trace.empty()) {
+    rp::Plot p{"Unexplained heat flow per node (inverse method on the base-model residual, first fit recording)", "time [h]",
+               "heat [W]", {}, false};
+    for (const auto& t : r.trace) {
+      rp::Series s{t.node, {}, {}, rp::Series::Style::Step};
+      for (std::size_t i = 0; i < t.time_s.size(); ++i) { s.x.push_back(t.time_s[i] / 3600.0); s.y.push_back(t.heat_w[i]); }
+      p.series.push_back(s);
+    }
+    rp::save_plot(p, dir + "/residual_heat_trace");
+  }
+#else
+  (void)check;
+#endif
+}
+
+}  // namespace btsm::residual

@@ -1,0 +1,93 @@
+// Fitted-model JSON codec.
+#include "model_file.hpp"
+
+#include <cmath>
+#include <fstream>
+#include <limits>
+#include <stdexcept>
+
+namespace btsm::thermal {
+
+nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std::vector<Recording>& recs) {
+  nlohmann::json j;
+  j["format"] = "btsm-thermal-model-1";
+  j["network"] = network_to_json(net);
+  nlohmann::json values, sigma, units, status, notes;
+  for (const auto& e : fit.estimates) {
+    values[e.name] = e.value;
+    sigma[e.name] = e.sigma;
+    units[e.name] = e.unit;
+    status[e.name] = identifiability_name(e.status);
+    if (!e.note.empty()) notes[e.name] = e.note;
+  }
+  j["parameters"] = values;
+  j["sigma"] = sigma;
+  j["sigma_note"] = "1 sigma from the Gauss-Newton covariance scaled by the residual variance (fixed: 0)";
+  j["units"] = units;
+  j["identifiability"] = status;
+  j["notes"] = notes.is_null() ? nlohmann::json::object() : notes;
+  j["gauge"] = fit.gauge;
+  j["fit"] = {{"rms_K", fit.rms_K},
+              {"residual_sigma_K", fit.residual_sigma_K},
+              {"residual_count", fit.residual_count},
+              {"free_parameters", fit.free_parameter_count},
+              {"condition_number", fit.condition_number},
+              {"converged", fit.converged},
+              {"seconds", fit.seconds}};
+  j["fit"]["stages"] = nlohmann::json::array();
+  for (const auto& s : fit.stages)
+    j["fit"]["stages"].push_back({{"name", s.name}, {"iterations", s.iterations}, {"rms_K", s.rms_K}, {"seconds", s.seconds}});
+  j["recordings"] = nlohmann::json::array();
+  for (std::size_t r = 0; r < recs.size(); ++r) {
+    nlohmann::json rj{{"file", recs[r].source}, {"rows", recs[r].rows()}};
+    if (r < fit.initial_states.size()) {
+      std::vector<double> x(fit.initial_states[r].data(), fit.initial_states[r].data() + fit.initial_states[r].size());
+      rj["initial_state_c"] = x;
+    }
+    j["recordings"].push_back(rj);
+  }
+  j["warnings"] = fit.warnings;
+  return j;
+}
+
+FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
+  if (!j.is_object() || !j.contains("network") || !j.contains("parameters"))
+    throw std::invalid_argument(src + ": not a btsm model (needs 'network' and 'parameters')");
+  FittedModel m;
+  m.json = j;
+  m.network = network_from_json(j.at("network"), src + " (network)");
+  m.params.resize(m.network.param_count());
+  m.sigma = Eigen::VectorXd::Constant(m.network.param_count(), std::numeric_limits<double>::quiet_NaN());
+  const auto& pv = j.at("parameters");
+  for (int i = 0; i < m.network.param_count(); ++i) {
+    const std::string& name = m.network.params[static_cast<std::size_t>(i)].name;
+    if (!pv.contains(name) || !pv.at(name).is_number())
+      throw std::invalid_argument(src + ": parameters: missing or non-numeric value for '" + name + "'");
+    m.params[i] = pv.at(name).get<double>();
+    if (!std::isfinite(m.params[i])) throw std::invalid_argument(src + ": parameters: '" + name + "' is not finite");
+    if (j.contains("sigma") && j.at("sigma").contains(name) && j.at("sigma").at(name).is_number())
+      m.sigma[i] = j.at("sigma").at(name).get<double>();
+  }
+  return m;
+}
+
+FittedModel load_model(const std::string& path) {
+  std::ifstream f(path);
+  if (!f) throw std::runtime_error(path + ": cannot open model file");
+  nlohmann::json j;
+  try {
+    j = nlohmann::json::parse(f);
+  } catch (const nlohmann::json::parse_error& e) {
+    throw std::invalid_argument(path + ": not valid JSON: " + e.what());
+  }
+  return model_from_json(j, path);
+}
+
+void save_json(const std::string& path, const nlohmann::json& j) {
+  std::ofstream f(path);
+  if (!f) throw std::runtime_error(path + ": cannot write");
+  f << j.dump(2) << "\n";
+  if (!f) throw std::runtime_error(path + ": write failed");
+}
+
+}  // namespace btsm::thermal

@@ -1,0 +1,156 @@
+// Validation metrics. NMSE follows the paper's A7, MAPE its A6 (on rises above ambient).
+#include "validate.hpp"
+
+#include "fit.hpp"
+#include "simulator.hpp"
+
+#include <Eigen/Cholesky>
+#include <Eigen/QR>
+
+#include <cmath>
+#include <limits>
+
+namespace btsm::thermal {
+namespace {
+constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
+}
+
+ErrorMetrics error_metrics(const Eigen::VectorXd& ref, const Eigen::VectorXd& pred) {
+  ErrorMetrics m;
+  double sum = 0;
+  for (Eigen::Index i = 0; i < ref.size(); ++i)
+    if (std::isfinite(ref[i]) && std::isfinite(pred[i])) { sum += ref[i]; ++m.count; }
+  if (m.count == 0) { m.nmse = kNaN; m.rmse_K = kNaN; m.max_abs_K = kNaN; return m; }
+  const double mean = sum / static_cast<double>(m.count);
+  double se = 0, sv = 0;
+  for (Eigen::Index i = 0; i < ref.size(); ++i) {
+    if (!(std::isfinite(ref[i]) && std::isfinite(pred[i]))) continue;
+    const double e = pred[i] - ref[i];
+    se += e * e;
+    sv += (ref[i] - mean) * (ref[i] - mean);
+    m.max_abs_K = std::max(m.max_abs_K, std::abs(e));
+  }
+  m.rmse_K = std::sqrt(se / static_cast<double>(m.count));
+  m.nmse = sv > 0 ? 1.0 - se / sv : kNaN;
+  return m;
+}
+
+Eigen::VectorXd estimate_initial_state(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
+                                       std::size_t rows) {
+  const Eigen::VectorXd guess = first_sample_state(net, rec);
+  if (rows <= 1) return guess;
+  rows = std::min(rows, rec.rows());
+  Recording head = rec;
+  head.time_s.resize(rows);
+  head.speed_rpm.resize(rows);
+  head.ambient_c.resize(rows);
+  head.temp_c = rec.temp_c.topRows(static_cast<Eigen::Index>(rows)).eval();
+  const int n = net.node_count();
+  // The response is affine in x0: r(x0) = r(guess) + F (x0 - guess); F from unit perturbations.
+  const Eigen::MatrixXd r0 = prediction_residuals(net, params, head, guess);
+  std::vector<Eigen::MatrixXd> cols;
+  for (int i = 0; i < n; ++i) {
+    Eigen::VectorXd x = guess;
+    x[i] += 1.0;
+    cols.push_back(prediction_residuals(net, params, head, x) - r0);
+  }
+  Eigen::MatrixXd FtF = Eigen::MatrixXd::Zero(n, n);
+  Eigen::VectorXd Ftr = Eigen::VectorXd::Zero(n);
+  for (Eigen::Index k = 0; k < r0.rows(); ++k)
+    for (Eigen::Index m = 0; m < r0.cols(); ++m) {
+      if (!std::isfinite(r0(k, m))) continue;
+      Eigen::VectorXd f(n);
+      for (int i = 0; i < n; ++i) f[i] = cols[static_cast<std::size_t>(i)](k, m);
+      FtF += f * f.transpose();
+      Ftr += f * r0(k, m);
+    }
+  const double ridge = 1e-6 * std::max(1.0, FtF.diagonal().maxCoeff());
+  FtF.diagonal().array() += ridge;
+  return guess - FtF.ldlt().solve(Ftr);
+}
+
+RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
+                                       const ValidateOptions& opts) {
+  RecordingValidation v;
+  v.source = rec.source;
+  const auto cols = measurement_columns(net, rec);
+  v.initial_state_c = estimate_initial_state(net, params, rec, opts.initial_rows);
+  v.predicted_c = simulate_recording(net, params, rec, v.initial_state_c);
+  const auto rows = static_cast<Eigen::Index>(rec.rows());
+  for (std::size_t m = 0; m < cols.size(); ++m) {
+    const Eigen::VectorXd meas = rec.temp_c.col(cols[m]);
+    const Eigen::VectorXd pred = v.predicted_c.col(net.measurements[m].node);
+    v.all.push_back(error_metrics(meas, pred));
+    Eigen::VectorXd mo = meas, mc = meas;
+    for (Eigen::Index k = 0; k < rows; ++k) {
+      // row k's state belongs to the mode that produced it (the interval before it); row 0 to its own
+      const std::size_t src = static_cast<std::size_t>(k > 0 ? k - 1 : 0);
+      if (net.mode_at(rec.speed_rpm[src]) == Mode::Operating) mc[k] = kNaN; else mo[k] = kNaN;
+    }
+    v.operating.push_back(error_metrics(mo, pred));
+    v.cooling.push_back(error_metrics(mc, pred));
+  }
+  // Steady states: operating phases at one speed, long enough, followed by a stop.
+  std::size_t b = 0;
+  const std::size_t nrows = rec.rows();
+  while (b < nrows) {
+    if (net.mode_at(rec.speed_rpm[b]) != Mode::Operating) { ++b; continue; }
+    std::size_t e = b;
+    while (e + 1 < nrows && rec.speed_rpm[e + 1] == rec.speed_rpm[b]) ++e;
+    const std::size_t stop = e + 1;  // first row after the phase
+    if (stop < nrows && net.mode_at(rec.speed_rpm[stop]) == Mode::Cooling) {
+      const double speed = rec.speed_rpm[b];
+      const double slowest = -poles_per_s(net, params, speed).maxCoeff();
+      const double duration = rec.time_s[stop] - rec.time_s[b];
+      if (slowest > 0 && duration * slowest >= opts.settled_time_constants) {
+        SteadyStatePoint sp;
+        sp.speed_rpm = speed;
+        sp.stop_time_s = rec.time_s[stop];
+        const double amb = rec.ambient_c[stop];
+        const Eigen::VectorXd ss = steady_state_c(net, params, speed, amb);
+        const auto nm = static_cast<Eigen::Index>(cols.size());
+        sp.measured_rise_K.resize(nm);
+        sp.predicted_rise_K.resize(nm);
+        sp.ape_percent.resize(nm);
+        double sum = 0;
+        int cnt = 0;
+        for (Eigen::Index m = 0; m < nm; ++m) {
+          const int c = cols[static_cast<std::size_t>(m)];
+          // measured before the stop: mean of the last rows up to the stop instant
+          double acc = 0;
+          std::size_t nacc = 0;
+          for (std::size_t k = stop + 1 > opts.averaging_rows ? stop + 1 - opts.averaging_rows : 0; k <= stop; ++k)
+            if (std::isfinite(rec.temp_c(static_cast<Eigen::Index>(k), c))) { acc += rec.temp_c(static_cast<Eigen::Index>(k), c) - rec.ambient_c[k]; ++nacc; }
+          double meas = kNaN;
+          if (nacc + 1 >= opts.averaging_rows) {
+            meas = acc / static_cast<double>(nacc);
+          } else {
+            // probe inserted at/after the stop: quadratic fit over the first rows, back to the stop
+            Eigen::MatrixXd A(0, 3);
+            Eigen::VectorXd y(0);
+            for (std::size_t k = stop; k < nrows && static_cast<std::size_t>(A.rows()) < opts.extrapolation_rows; ++k) {
+              const double t = rec.temp_c(static_cast<Eigen::Index>(k), c);
+              if (!std::isfinite(t)) continue;
+              const double dt = rec.time_s[k] - rec.time_s[stop];
+              A.conservativeResize(A.rows() + 1, 3);
+              y.conservativeResize(y.size() + 1);
+              A.row(A.rows() - 1) << 1.0, dt, dt * dt;
+              y[y.size() - 1] = t - rec.ambient_c[k];
+            }
+            if (A.rows() >= 3) meas = A.colPivHouseholderQr().solve(y)[0];
+          }
+          sp.measured_rise_K[m] = meas;
+          sp.predicted_rise_K[m] = ss[net.measurements[static_cast<std::size_t>(m)].node] - amb;
+          sp.ape_percent[m] = std::abs(sp.predicted_rise_K[m] - meas) / std::abs(meas) * 100.0;
+          if (std::isfinite(sp.ape_percent[m])) { sum += sp.ape_percent[m]; ++cnt; }
+        }
+        sp.mape_percent = cnt ? sum / cnt : kNaN;
+        v.steady.push_back(sp);
+      }
+    }
+    b = e + 1;
+  }
+  return v;
+}
+
+}  // namespace btsm::thermal
