@@ -204,7 +204,9 @@ void run_heat(const HeatArgs& a) {
     j["scan"] = nlohmann::json::array();
     for (const auto& s : r.scan) j["scan"].push_back({{"alpha", s.alpha}, {"rss_K2", s.rss_k2}, {"seminorm_W2", s.seminorm_w2}, {"dof", s.dof}, {"gcv", s.gcv}});
     if (!a.out_dir.empty()) j["out_dir"] = a.out_dir;
-    print_json(j);
+    // same format as cli_support's print_json; printed here because this file is compiled into
+    // btsm_thermal, which must not depend on the CLI executable's sources
+    std::cout << j.dump(2) << "\n";
     return;
   }
   std::cout << fmt::format("Inverse heat sources: {} on {} ({} steps of {:g} s)\n", a.recording, model.network.name,

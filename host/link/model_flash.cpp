@@ -81,8 +81,8 @@ std::vector<uint8_t> load_model_blob(const std::string& path) {
       return read_file_bytes(p.string());
     }
   }
-  throw std::runtime_error(path + ": no model blob in this JSON (expected \"blob_hex\" with the blob as hex, "
-                                  "or \"blob_file\" naming the .bin written by `btsm reduce`)");
+  throw std::runtime_error(path + ": this JSON holds no model blob (looked for \"blob_hex\" or \"blob_file\"): "
+                                  "write the blob with `btsm reduce ... --blob model.bin` and flash model.bin");
 }
 
 std::string check_model_blob(std::span<const uint8_t> blob) {

@@ -106,7 +106,14 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
   w.write_meta("model_crc", fmt::format("{:08x}", id.info.model_crc));
   w.write_meta("time_base", "module time_ms since the first sample, s");
 
-  const double period_guess_s = 5.0;
+  // The silence that means "module stopped" depends on its sample period (1 s .. 10 min).
+  double period_guess_s = 5.0;
+  try {
+    period_guess_s = session.get_config(static_cast<uint8_t>(ConfigKey::SamplePeriodMs)).value / 1000.0;
+    w.write_meta("sample_period_s", fmt::format("{:g}", period_guess_s));
+  } catch (const NackError&) {
+    // older firmware without GET_CONFIG: keep the default guess
+  }
   const double sample_timeout_s = opts.sample_timeout_s > 0 ? opts.sample_timeout_s : 3 * period_guess_s + 10;
   const auto t0 = std::chrono::steady_clock::now();
   std::optional<uint32_t> last_ms;

@@ -2,6 +2,8 @@
 
 #include <fmt/format.h>
 
+#include <thread>
+
 namespace btsm::link {
 
 using namespace btsm::wire;
@@ -143,6 +145,7 @@ Frame Session::request(MsgType type, std::span<const uint8_t> payload, std::opti
     const uint8_t seq = take_seq();
     send_frame(t, seq, payload);
     const auto deadline = std::chrono::steady_clock::now() + opts_.reply_timeout;
+    bool busy = false;
     for (;;) {
       // Look through what has arrived for our answer; keep everything else in order.
       for (auto it = inbox_.begin(); it != inbox_.end();) {
@@ -156,6 +159,12 @@ Frame Session::request(MsgType type, std::span<const uint8_t> payload, std::opti
           if (ack.acked_seq == seq && ack.acked_type == t) {
             Frame f = std::move(*it);
             inbox_.erase(it);
+            if (ack.status == static_cast<uint8_t>(Nack::Busy) && attempt < opts_.retries) {
+              // The module is still writing EEPROM for an earlier request (typically after we
+              // resent one): wait a little and try again with a new seq.
+              busy = true;
+              break;
+            }
             if (ack.status != static_cast<uint8_t>(Nack::Ok)) throw NackError(t, ack.status, ack.detail);
             return f;
           }
@@ -166,6 +175,7 @@ Frame Session::request(MsgType type, std::span<const uint8_t> payload, std::opti
         }
         ++it;
       }
+      if (busy) break;
       // Replies to abandoned attempts and other ACKs are never useful later: drop them so the
       // inbox holds only frames a caller may still want (samples, unsolicited data).
       for (auto it = inbox_.begin(); it != inbox_.end();) {
@@ -181,6 +191,10 @@ Frame Session::request(MsgType type, std::span<const uint8_t> payload, std::opti
       const auto left = std::chrono::duration_cast<Millis>(deadline - std::chrono::steady_clock::now());
       if (left.count() <= 0) break;
       pump(left);
+    }
+    if (busy) {
+      ++busy_answers_;
+      std::this_thread::sleep_for(std::min(Millis(100), opts_.reply_timeout / 4));
     }
   }
   throw LinkError(LinkErrorKind::kTimeout,

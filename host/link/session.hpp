@@ -20,7 +20,7 @@ namespace btsm::link {
 
 struct SessionOptions {
   Millis reply_timeout{2000};  // per attempt, ms
-  int retries = 3;             // extra attempts after a timeout (NACKs are never retried)
+  int retries = 3;             // extra attempts after a timeout or a BUSY answer (other NACKs are final)
 };
 
 // A refused request: the module answered with a NACK code.
@@ -118,6 +118,7 @@ class Session {
   const wire::FrameCounters& frame_counters() const { return decoder_.counters(); }
   uint64_t invalid_payloads() const { return invalid_payloads_; }
   uint64_t ignored_frames() const { return ignored_frames_; }
+  uint64_t busy_answers() const { return busy_answers_; }
 
   // After the transport was reopened: drop partial input (the tracker keeps counting).
   void resync();
@@ -136,6 +137,7 @@ class Session {
   uint8_t next_seq_ = 1;
   uint64_t invalid_payloads_ = 0;
   uint64_t ignored_frames_ = 0;
+  uint64_t busy_answers_ = 0;
 };
 
 // "SET_CONFIG" etc. for messages.

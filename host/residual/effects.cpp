@@ -102,11 +102,43 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
   switch (e.kind) {
     case EffectKind::HeatSourceTransient: {
       check_node(base, e.node, "heat_source_transient");
-      m.transient = true;
       const std::string n = base.nodes[e.node].name;
-      if (auto it = values.find("a_transient_" + n); it != values.end()) m.transient_values.amplitude_w_per_krpm = it->second;
-      if (auto it = values.find("tau_transient_" + n); it != values.end()) m.transient_values.tau_s = it->second;
-      m.key_param = "a_transient_" + n;
+      double a = 1.0, tau = 600.0;  // start: 1 W per 1000 rpm, 10 min
+      if (auto it = values.find("a_transient_" + n); it != values.end()) a = it->second;
+      if (auto it = values.find("tau_transient_" + n); it != values.end()) tau = it->second;
+      const auto [gt, gta] = transient_conductances(a, tau);
+      const std::string v = "transient_" + n;
+      if (base.node_index(v) >= 0) throw std::invalid_argument("heat_source_transient: node '" + v + "' already exists");
+      const int pc = add(m, param("C_" + v, "J/K", kTransientCapacitance, 1.0, 1e7, true, "capacity of the virtual transient state", true),
+                         values, false);
+      const int pg = add(m, param("g_" + v, "W/K", gt, 1e-9, 1e3, true, "coupling transient state -> " + n + " (operating)"), values);
+      const int pa = add(m, param("g_" + v + "_ambient", "W/K", gta, 1e-6, 1e4, true, "decay path of the transient state"), values);
+      th::Node nd;
+      nd.name = v;
+      nd.capacitance_param = pc;
+      m.net.nodes.push_back(nd);
+      const int vi = m.net.node_count() - 1;
+      th::Term tg;
+      tg.param = pg;
+      tg.kind = th::TermKind::Conductance;
+      th::Link l1;
+      l1.name = "g_" + v;
+      l1.a = e.node;
+      l1.b = vi;
+      l1.operating.push_back(tg);  // no friction heat reaches the bearing at standstill
+      th::Term ta = tg;
+      ta.param = pa;
+      th::Link l2;
+      l2.name = "g_" + v + "_ambient";
+      l2.a = vi;
+      l2.b = th::kAmbient;
+      l2.operating.push_back(ta);
+      l2.cooling.push_back(ta);
+      m.net.links.push_back(l1);
+      m.net.links.push_back(l2);
+      if (std::isfinite(m.net.sum_capacitance_J_per_K)) m.net.sum_capacitance_J_per_K += kTransientCapacitance;
+      m.transient_node = vi;
+      m.key_param = "g_" + v;
       break;
     }
     case EffectKind::TemperatureDependentHeat: {
@@ -224,23 +256,34 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
   return m;
 }
 
-Eigen::MatrixXd transient_heat_w(const th::Network& net, const th::Recording& rec, int node, const TransientHeat& h) {
+std::pair<double, double> transient_conductances(double amplitude_w_per_krpm, double tau_s) {
+  if (!(tau_s > 0) || !(amplitude_w_per_krpm > 0)) throw std::invalid_argument("heat_source_transient: amplitude and tau must be > 0");
+  const double gt = amplitude_w_per_krpm * kTransientCapacitance / kTransientImpulse;
+  const double total = kTransientCapacitance / tau_s;
+  if (!(total > gt)) throw std::invalid_argument("heat_source_transient: amplitude x tau exceeds the impulse energy scale");
+  return {gt, total - gt};
+}
+
+TransientValues transient_values(double gt, double gta, double var_gt, double var_gta, double cov) {
+  TransientValues v;
+  v.amplitude_w_per_krpm = kTransientImpulse * gt / kTransientCapacitance;
+  v.amplitude_sigma = kTransientImpulse * std::sqrt(std::max(var_gt, 0.0)) / kTransientCapacitance;
+  const double s = gt + gta;
+  v.tau_s = kTransientCapacitance / s;
+  v.tau_sigma = kTransientCapacitance / (s * s) * std::sqrt(std::max(var_gt + var_gta + 2 * cov, 0.0));
+  return v;
+}
+
+Eigen::MatrixXd transient_impulses_w(const th::Network& net, const th::Recording& rec, int node) {
   check_node(net, node, "heat_source_transient");
-  if (!(h.tau_s > 0)) throw std::invalid_argument("heat_source_transient: tau must be > 0 s");
   const Eigen::Index rows = static_cast<Eigen::Index>(rec.rows());
   Eigen::MatrixXd q = Eigen::MatrixXd::Zero(rows, net.node_count());
-  double s = 0;  // decaying state [W] at the start of the current interval
-  double prev_speed = 0;  // a recording is taken to start from standstill
+  double prev = 0;
   for (Eigen::Index k = 0; k + 1 < rows; ++k) {
     const double w = rec.speed_rpm[k];
-    const double inc = std::max(0.0, w - prev_speed);
-    prev_speed = w;
-    s += h.amplitude_w_per_krpm * inc / 1000.0;
-    if (net.mode_at(w) == th::Mode::Cooling) s = 0;  // no friction heat at standstill
-    const double dt = rec.time_s[k + 1] - rec.time_s[k];
-    const double decay = std::exp(-dt / h.tau_s);
-    q(k, node) = s * h.tau_s / dt * (1.0 - decay);  // exact average over the interval
-    s *= decay;
+    const double inc = std::max(0.0, w - prev);
+    prev = w;
+    if (inc > 0 && net.mode_at(w) == th::Mode::Operating) q(k, node) = kTransientImpulse * inc / 1000.0 / (rec.time_s[k + 1] - rec.time_s[k]);
   }
   return q;
 }

@@ -151,116 +151,61 @@ ParamReport report_of(const th::FitResult& fr, const th::Network& net, const std
   return p;
 }
 
+std::vector<Eigen::MatrixXd> impulses_for(const th::Network& net, int transient_node, const std::vector<th::Recording>& recs) {
+  std::vector<Eigen::MatrixXd> out;
+  if (transient_node < 0) return out;
+  for (const auto& r : recs) out.push_back(transient_impulses_w(net, r, transient_node));
+  return out;
+}
+
 CandidateFit fit_network_effect(const AugmentedModel& am, const th::Network& base, const Eigen::VectorXd& base_values,
-                                const std::vector<th::Recording>& fit, const LoopOptions& o) {
+                                const std::vector<th::Recording>& fit, const LoopOptions& o,
+                                const std::vector<Eigen::VectorXd>& starts, int iterations) {
   th::FitOptions fo;
   fo.staged = false;
-  fo.start = am.params;
-  fo.max_iterations = o.max_iterations;
+  fo.max_iterations = iterations;
+  fo.extra_heat_w = impulses_for(am.net, am.transient_node, fit);
   if (!o.fit_base) fo.free_only = am.effect_params;
   if (!std::isfinite(am.net.sum_capacitance_J_per_K) && o.fit_base) {
     // extra nodes: pin the scale with the largest base capacitance at its base-fit value
     const int c = largest_capacitance_param(base, base_values);
     if (c >= 0 && !base.params[c].fixed) fo.hold.push_back(base.params[c].name);
   }
-  const th::FitResult fr = th::fit_network(am.net, fit, fo);
+  th::FitResult fr;
+  bool have = false;
+  for (const Eigen::VectorXd& s : starts) {  // several starts where the effect has a nonconvex start-up
+    // Stage 1: the effect alone on top of the base fit (the base has absorbed part of the effect, so
+    // a joint fit straight from the base tends to stall); stage 2: everything jointly.
+    th::FitOptions f1 = fo;
+    f1.start = s;
+    f1.free_only = am.effect_params;
+    f1.hold.clear();
+    th::FitResult f = th::fit_network(am.net, fit, f1);
+    if (o.fit_base) {
+      fo.start = f.params;
+      f = th::fit_network(am.net, fit, fo);
+    }
+    say(o, fmt::format("residual:     start {}: rms {:.4g} K, {} ({} iterations)", &s - starts.data(), f.rms_K,
+                       f.converged ? "converged" : "NOT converged", f.stages.empty() ? 0 : f.stages.back().iterations));
+    if (!have || f.rms_K < fr.rms_K) { fr = std::move(f); have = true; }
+  }
   CandidateFit cf;
   cf.values = fr.params;
   cf.x0 = fr.initial_states;
+  cf.extra_fit = fo.extra_heat_w;
   cf.free_count = fr.free_parameter_count;
-  for (const auto& name : am.effect_params) cf.params.push_back(report_of(fr, am.net, name));
   const int k = am.net.param_index(am.key_param);
   const double sg = fr.estimates[k].sigma;
   cf.key_z = sg > 0 ? std::abs(fr.estimates[k].value) / sg : (std::abs(fr.estimates[k].value) > 0 ? 1e9 : 0.0);
-  return cf;
-}
-
-// heat_source_transient: the amplitude enters linearly; tau by a 1-D search; the base parameters
-// are then refitted with the transient heat as a known input (two alternations).
-CandidateFit fit_transient(const th::Network& base, const Eigen::VectorXd& base_values, const std::vector<Eigen::VectorXd>& base_x0,
-                           int node, const std::vector<th::Recording>& fit, const LoopOptions& o, TransientHeat& out) {
-  Eigen::VectorXd values = base_values;
-  std::vector<Eigen::VectorXd> x0 = base_x0;
-  const std::string nn = base.nodes[node].name;
-  auto unit_response = [&](double tau, std::vector<Eigen::MatrixXd>& r0, std::vector<Eigen::MatrixXd>& s) {
-    r0.clear();
-    s.clear();
-    for (std::size_t r = 0; r < fit.size(); ++r) {
-      const Eigen::MatrixXd h = transient_heat_w(base, fit[r], node, {1.0, tau});
-      const Eigen::MatrixXd a = th::prediction_residuals(base, values, fit[r], x0[r]);
-      const Eigen::MatrixXd b = th::prediction_residuals(base, values, fit[r], x0[r], &h);
-      r0.push_back(a);
-      s.push_back(b - a);
-    }
-  };
-  auto solve_amp = [&](double tau, double& amp, double& rss, double& ss) {
-    std::vector<Eigen::MatrixXd> r0, s;
-    unit_response(tau, r0, s);
-    double sr = 0, s2 = 0, r2 = 0;
-    for (std::size_t r = 0; r < r0.size(); ++r)
-      for (Eigen::Index i = 0; i < r0[r].size(); ++i) {
-        const double a = r0[r].data()[i], b = s[r].data()[i];
-        if (!std::isfinite(a) || !std::isfinite(b)) continue;
-        sr += a * b;
-        s2 += b * b;
-        r2 += a * a;
-      }
-    amp = s2 > 0 ? -sr / s2 : 0.0;
-    rss = r2 - (s2 > 0 ? sr * sr / s2 : 0.0);
-    ss = s2;
-  };
-  double tau = 600, amp = 0, rss = 0, s2 = 0, ltau_sigma = 0;
-  for (int round = 0; round < 2; ++round) {
-    // tau grid in log space, then golden-section refinement
-    std::vector<double> taus;
-    for (double t = 60; t <= 4 * 3600.0 + 1; t *= 2) taus.push_back(t);
-    std::vector<double> rs(taus.size());
-    for (std::size_t i = 0; i < taus.size(); ++i) { double a2, s22; solve_amp(taus[i], a2, rs[i], s22); }
-    const std::size_t best = static_cast<std::size_t>(std::min_element(rs.begin(), rs.end()) - rs.begin());
-    double a = std::log(taus[best > 0 ? best - 1 : 0]), b = std::log(taus[std::min(best + 1, taus.size() - 1)]);
-    const double gr = 0.5 * (std::sqrt(5.0) - 1.0);
-    double c = b - gr * (b - a), d = a + gr * (b - a), fc, fd, tmp1, tmp2;
-    solve_amp(std::exp(c), tmp1, fc, tmp2);
-    solve_amp(std::exp(d), tmp1, fd, tmp2);
-    for (int it = 0; it < 12; ++it) {
-      if (fc < fd) { b = d; d = c; fd = fc; c = b - gr * (b - a); solve_amp(std::exp(c), tmp1, fc, tmp2); }
-      else { a = c; c = d; fc = fd; d = a + gr * (b - a); solve_amp(std::exp(d), tmp1, fd, tmp2); }
-    }
-    tau = std::exp(fc < fd ? c : d);
-    solve_amp(tau, amp, rss, s2);
-    // curvature of RSS in log tau -> 1 sigma of log tau
-    const double h = 0.1;
-    double rp, rm, t1, t2;
-    solve_amp(tau * std::exp(h), t1, rp, t2);
-    solve_amp(tau * std::exp(-h), t1, rm, t2);
-    const double curv = (rp - 2 * rss + rm) / (h * h);
-    std::size_t n = 0;
-    for (const auto& r : fit) n += static_cast<std::size_t>(r.temp_c.size());
-    const double s2hat = rss / std::max<double>(1.0, static_cast<double>(n));
-    ltau_sigma = curv > 0 ? std::sqrt(2.0 * s2hat / curv) : kNaN;
-    if (round == 1 || !o.fit_base) break;
-    // refit the base with the transient heat as a known input
-    th::FitOptions fo;
-    fo.staged = false;
-    fo.start = values;
-    fo.max_iterations = o.max_iterations;
-    for (const auto& r : fit) fo.extra_heat_w.push_back(transient_heat_w(base, r, node, {amp, tau}));
-    const th::FitResult fr = th::fit_network(base, fit, fo);
-    values = fr.params;
-    x0 = fr.initial_states;
+  if (am.transient_node >= 0) {
+    const std::string node = am.key_param.substr(std::string("g_transient_").size());
+    const int i = am.net.param_index(am.effect_params[0]), j = am.net.param_index(am.effect_params[1]);
+    const TransientValues tv = transient_values(fr.params(i), fr.params(j), fr.covariance(i, i), fr.covariance(j, j), fr.covariance(i, j));
+    cf.params.push_back({"a_transient_" + node, "W per 1000 rpm increase", tv.amplitude_w_per_krpm, tv.amplitude_sigma});
+    cf.params.push_back({"tau_transient_" + node, "s", tv.tau_s, tv.tau_sigma});
+  } else {
+    for (const auto& name : am.effect_params) cf.params.push_back(report_of(fr, am.net, name));
   }
-  CandidateFit cf;
-  cf.values = values;
-  cf.x0 = x0;
-  out = {amp, tau};
-  for (const auto& r : fit) cf.extra_fit.push_back(transient_heat_w(base, r, node, out));
-  std::size_t n = 0;
-  for (const auto& r : fit) n += static_cast<std::size_t>(r.temp_c.size());
-  const double amp_sigma = s2 > 0 ? std::sqrt(rss / std::max<double>(1.0, static_cast<double>(n)) / s2) : kNaN;
-  cf.params.push_back({"a_transient_" + nn, "W per 1000 rpm increase", amp, amp_sigma});
-  cf.params.push_back({"tau_transient_" + nn, "s", tau, tau * ltau_sigma});
-  cf.key_z = amp_sigma > 0 ? std::abs(amp) / amp_sigma : 0.0;
-  cf.free_count = 2;
   return cf;
 }
 
@@ -521,26 +466,24 @@ LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& bas
     }
   }
 
-  for (const EffectSpec& spec : specs) {
+  auto evaluate_candidate = [&](const EffectSpec& spec, int iterations, const Eigen::VectorXd* start) {
     CandidateResult cr;
     cr.label = effect_label(spec, base);
     cr.effect = effect_name(spec.kind);
     cr.nodes = effect_nodes(spec, base);
-    say(o, "residual: trying " + cr.label);
     try {
-      CandidateFit cf;
-      AugmentedModel am;
-      if (spec.kind == EffectKind::HeatSourceTransient) {
-        TransientHeat h;
-        cf = fit_transient(base, bp, bx0, spec.node, fit, o, h);
-        am.net = base;
-        cr.transient = h;
-        cr.transient_node = spec.node;
-      } else {
-        am = augment(base, bp, spec);
-        cf = fit_network_effect(am, base, bp, fit, o);
+      const AugmentedModel am = augment(base, bp, spec);
+      std::vector<Eigen::VectorXd> starts = {start ? *start : am.params};
+      if (spec.kind == EffectKind::AmbientDynamics && !start) {
+        // a near-base start (weak lag) and a strong-lag start; the better fit is kept
+        Eigen::VectorXd weak = am.params;
+        weak(am.net.param_index("C_ambient_lag")) *= 0.2;
+        weak(am.net.param_index("g_ambient_lag")) *= 25.0;
+        starts.push_back(weak);
       }
-      cr.net = spec.kind == EffectKind::HeatSourceTransient ? base : am.net;
+      const CandidateFit cf = fit_network_effect(am, base, bp, fit, o, starts, iterations);
+      cr.transient_node = am.transient_node;
+      cr.net = am.net;
       cr.values = cf.values;
       cr.params = cf.params;
       cr.key_z = cf.key_z;
@@ -551,15 +494,14 @@ LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& bas
       }
       for (const auto& r : check) {
         Eigen::MatrixXd ex;
-        if (cr.transient_node >= 0) ex = transient_heat_w(base, r, cr.transient_node, cr.transient);
+        if (cr.transient_node >= 0) ex = transient_impulses_w(cr.net, r, cr.transient_node);
         rc.push_back(evaluate_model(cr.net, cr.values, r, cr.transient_node >= 0 ? &ex : nullptr).residual_k);
       }
       cr.fit = error_metrics(rf, meas_fit);
       cr.check = error_metrics(rc, meas_check);
       std::size_t nn = 0;
       const double rss = rss_of(rf, nn);
-      const int k = (o.fit_base ? (spec.kind == EffectKind::HeatSourceTransient ? base_free + 2 : cf.free_count)
-                                : static_cast<int>(cf.params.size())) +
+      const int k = (o.fit_base ? cf.free_count : static_cast<int>(cf.params.size())) +
                     cr.net.node_count() * static_cast<int>(fit.size());
       const Scores s = information(rss, nn, k);
       cr.aic = s.aic;
@@ -575,8 +517,32 @@ LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& bas
       cr.accepted = false;
       cr.reason = std::string("fit failed: ") + e.what();
     }
+    return cr;
+  };
+  for (const EffectSpec& spec : specs) {
+    say(o, "residual: trying " + effect_label(spec, base));
+    CandidateResult cr = evaluate_candidate(spec, o.max_iterations, nullptr);
     say(o, "residual:   " + cr.label + ": " + cr.reason);
     L.candidates.push_back(std::move(cr));
+  }
+  // Refinement: the screening fits are short; the most promising candidates (largest BIC gain) are
+  // continued from where they stopped with a long joint fit, so the claimed effect is fully fitted.
+  {
+    std::vector<std::pair<double, std::size_t>> order;
+    for (std::size_t i = 0; i < L.candidates.size(); ++i)
+      if (L.candidates[i].values.size() > 0 && L.candidates[i].delta_bic >= o.bic_margin) order.emplace_back(-L.candidates[i].delta_bic, i);
+    std::sort(order.begin(), order.end());
+    for (std::size_t j = 0; j < order.size() && static_cast<int>(j) < o.refine_candidates; ++j) {
+      const std::size_t i = order[j].second;
+      say(o, "residual: refining " + L.candidates[i].label);
+      const Eigen::VectorXd start = L.candidates[i].values;
+      CandidateResult cr = evaluate_candidate(specs[i], o.refine_iterations, &start);
+      if (cr.values.size() > 0 && cr.bic <= L.candidates[i].bic) {
+        cr.reason += " (refined)";
+        L.candidates[i] = std::move(cr);
+      }
+      say(o, "residual:   " + L.candidates[i].label + ": " + L.candidates[i].reason);
+    }
   }
 
   // 5. decision
@@ -605,12 +571,12 @@ LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& bas
     L.check_model_after.clear();
     for (std::size_t r = 0; r < fit.size(); ++r) {
       Eigen::MatrixXd ex;
-      if (c.transient_node >= 0) ex = transient_heat_w(base, fit[r], c.transient_node, c.transient);
+      if (c.transient_node >= 0) ex = transient_impulses_w(c.net, fit[r], c.transient_node);
       L.fit_resid_after.push_back(evaluate_model(c.net, c.values, fit[r], c.transient_node >= 0 ? &ex : nullptr).residual_k);
     }
     for (const auto& r : check) {
       Eigen::MatrixXd ex;
-      if (c.transient_node >= 0) ex = transient_heat_w(base, r, c.transient_node, c.transient);
+      if (c.transient_node >= 0) ex = transient_impulses_w(c.net, r, c.transient_node);
       const Evaluation ev = evaluate_model(c.net, c.values, r, c.transient_node >= 0 ? &ex : nullptr);
       L.check_resid_after.push_back(ev.residual_k);
       L.check_model_after.push_back(ev.model_c);

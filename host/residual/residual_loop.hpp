@@ -35,7 +35,9 @@ struct LoopOptions {
   std::vector<EffectKind> effects;   // empty = the whole library
   bool fit_base = true;              // false: use the given parameter values as the base model
   double trace_step_s = 0;           // inverse-heat step for the trace; 0 = max(60 s, 10 samples)
-  int max_iterations = 40;           // per fit
+  int max_iterations = 60;           // Levenberg-Marquardt iterations per screening fit
+  int refine_candidates = 2;         // the best candidates (by BIC gain) are then refined ...
+  int refine_iterations = 600;       // ... with this many iterations
   std::function<void(const std::string&)> progress;
 };
 
@@ -79,8 +81,7 @@ struct CandidateResult {
   // the augmented model (for plots)
   thermal::Network net;
   Eigen::VectorXd values;
-  TransientHeat transient;
-  int transient_node = -1;
+  int transient_node = -1;                 // virtual node of heat_source_transient (impulse input)
 };
 
 struct LoopResult {

@@ -141,6 +141,7 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
   namespace rp = btsm::report;
   if (check.empty() || r.check_resid_before.empty()) return;
   const thermal::Recording& rec = check[0];
+  const std::string rec_name = std::filesystem::path(rec.source).filename().string();
   const int nc = static_cast<int>(r.columns.size());
   const int stride = std::max<int>(1, static_cast<int>(rec.rows() / 3000));
   // the (up to) four columns with the largest residual before
@@ -156,7 +157,8 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
   std::vector<rp::Plot> model_panels;
   for (std::size_t i = 0; i < order.size() && i < 4; ++i) {
     const int c = order[i].second;
-    rp::Plot p{fmt::format("{} ({}): measured vs base vs {} (check recording {})", r.columns[c], r.diagnostics[c].node, r.label, rec.source),
+    rp::Plot p{fmt::format("{} ({}): measured, base model{} — {}", r.columns[c], r.diagnostics[c].node,
+                           r.chosen >= 0 ? ", with " + r.label : std::string(), rec_name),
                "time [h]", "temperature [degC]", {}, false};
     rp::Series m{"measured", {}, {}, rp::Series::Style::Points}, b{"base model", {}, {}, rp::Series::Style::Line},
         a{"with " + r.label, {}, {}, rp::Series::Style::Line};
@@ -185,7 +187,7 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     }
     return p;
   };
-  res_panels.push_back(residual_plot(r.check_resid_before, "Residuals of the base model (check recording " + rec.source + ")"));
+  res_panels.push_back(residual_plot(r.check_resid_before, "Residuals of the base model (check recording " + rec_name + ")"));
   if (r.chosen >= 0) res_panels.push_back(residual_plot(r.check_resid_after, "Residuals with " + r.label));
   if (!r.check_distortion.empty()) {
     rp::Plot p{"Estimated measurement distortion (probe - node temperature)", "time [h]", "distortion [K]", {}, false};

@@ -9,8 +9,6 @@
 #include <Eigen/LU>
 
 #include <algorithm>
-#include <cstdio>
-#include <cstdlib>
 #include <chrono>
 #include <cmath>
 #include <map>
@@ -339,16 +337,6 @@ LmOutcome levenberg_marquardt(LmProblem& pr, const FitOptions& opts) {
   Eigen::VectorXd u = pack(pr);
   clamp_to_bounds(pr, u);
   Evaluation ev = evaluator.evaluate(u, true);
-  if (std::getenv("BTSM_LM_GRADCHECK")) {
-    for (Eigen::Index j = 0; j < u.size(); ++j) {
-      Eigen::VectorXd up = u, um = u;
-      const double h = 1e-6;
-      up[j] += h; um[j] -= h;
-      const double fd = (evaluator.evaluate(up, false).cost - evaluator.evaluate(um, false).cost) / (2 * h);
-      std::fprintf(stderr, "  grad %d: analytic %.6g fd %.6g\n", (int)j, ev.g[j], fd);
-    }
-    evaluator.evaluate(u, true);
-  }
   double mu = 1e-3;
   for (int it = 0; it < opts.max_iterations; ++it) {
     out.iterations = it + 1;
@@ -376,7 +364,6 @@ LmOutcome levenberg_marquardt(LmProblem& pr, const FitOptions& opts) {
       Eigen::VectorXd un = u + delta;
       clamp_to_bounds(pr, un);
       const Evaluation trial = evaluator.evaluate(un, false);
-      if (std::getenv("BTSM_LM_DEBUG")) std::fprintf(stderr, "  it %d mu %.3g cost %.10g trial %.10g\n", it, mu, ev.cost, trial.cost);
       if (std::isfinite(trial.cost) && trial.cost < ev.cost) {
         const double rel = (ev.cost - trial.cost) / std::max(ev.cost, 1e-300);
         const double step = (un - u).cwiseAbs().maxCoeff();

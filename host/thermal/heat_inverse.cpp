@@ -3,6 +3,7 @@
 // and the dense stacked formulation of the paper as a reference. See heat_inverse.hpp.
 #include "host/thermal/heat_inverse.hpp"
 
+#include "host/thermal/model_file.hpp"
 #include "host/thermal/simulator.hpp"
 
 #include <nlohmann/json.hpp>
@@ -384,28 +385,10 @@ ModelWithParameters load_model_with_parameters(const std::string& path_or_preset
       throw std::invalid_argument(path_or_preset + ": not valid JSON: " + e.what());
     }
     if (j.is_object() && j.contains("network")) {
-      m.network = network_from_json(j.at("network"), path_or_preset + ": network");
-      m.params = default_parameters(m.network);
-      if (j.contains("parameters")) {
-        auto set = [&](const std::string& name, const nlohmann::json& v) {
-          const int i = m.network.param_index(name);
-          if (i < 0) throw std::invalid_argument(path_or_preset + ": parameters: '" + name + "' is not a parameter of the network");
-          if (!v.is_number()) throw std::invalid_argument(path_or_preset + ": parameters: '" + name + "' is not a number");
-          m.params(i) = v.get<double>();
-        };
-        const nlohmann::json& ps = j.at("parameters");
-        if (ps.is_object()) {
-          for (auto it = ps.begin(); it != ps.end(); ++it) set(it.key(), it.value());
-        } else if (ps.is_array()) {
-          for (const auto& e : ps) {
-            if (!e.is_object() || !e.contains("name") || !e.contains("value"))
-              throw std::invalid_argument(path_or_preset + ": parameters: each entry needs 'name' and 'value'");
-            set(e.at("name").get<std::string>(), e.at("value"));
-          }
-        } else {
-          throw std::invalid_argument(path_or_preset + ": 'parameters' must be an object or an array");
-        }
-      }
+      // the fitted-model JSON written by `btsm fit` (model_file.hpp)
+      const FittedModel fm = model_from_json(j, path_or_preset);
+      m.network = fm.network;
+      m.params = fm.params;
     } else {
       m.network = network_from_json(j, path_or_preset);
       m.params = default_parameters(m.network);

@@ -106,8 +106,8 @@ struct ModelWithParameters {
   Eigen::VectorXd params;
   std::string source;   // file or preset it came from
 };
-// Loads `path_or_preset`: (1) a JSON object {"network": {...network JSON...}, "parameters": ...}
-// where parameters is {"name": value, ...} or [{"name": ..., "value": ...}, ...] (a fit result);
+// Loads `path_or_preset`: (1) the fitted-model JSON of `btsm fit` (model_file.hpp: "network" +
+// "parameters" {name: value});
 // (2) a plain network JSON whose parameters all have values (initial/nominal); (3) a preset name.
 // Throws std::invalid_argument naming the file and the parameter without a value.
 ModelWithParameters load_model_with_parameters(const std::string& path_or_preset);

@@ -4,6 +4,7 @@
 #include "simulator.hpp"
 
 #include <Eigen/Eigenvalues>
+#include <Eigen/Cholesky>
 #include <Eigen/LU>
 #include <Eigen/SVD>
 
@@ -43,15 +44,26 @@ SpeedReduction reduce_with_inputs(const Network& net, const Eigen::VectorXd& par
       P(i, j) = BB(i, j) / (f.lambda[i] + f.lambda[j]);
       Q(i, j) = CC(i, j) / (f.lambda[i] + f.lambda[j]);
     }
-  const Eigen::MatrixXd Lc = psd_factor(P), Lo = psd_factor(Q);
-  Eigen::JacobiSVD<Eigen::MatrixXd> svd(Lo.transpose() * Lc, Eigen::ComputeFullU | Eigen::ComputeFullV);
-  const Eigen::VectorXd sig = svd.singularValues();
+  // Q is full rank (every node is an output): with Q = Lo Lo^T, the squared Hankel singular values
+  // are the eigenvalues of Lo^T P Lo, computed without a square root of the ill-conditioned P.
+  Eigen::LLT<Eigen::MatrixXd> llt(Q);
+  const Eigen::MatrixXd Lo = llt.info() == Eigen::Success ? Eigen::MatrixXd(llt.matrixL()) : psd_factor(Q);
+  const Eigen::MatrixXd M = Lo.transpose() * P * Lo;
+  Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> hs(M);
+  // descending order
+  Eigen::VectorXd sig(n);
+  Eigen::MatrixXd U(n, n);
+  for (int i = 0; i < n; ++i) {
+    sig[i] = std::sqrt(std::max(0.0, hs.eigenvalues()[n - 1 - i]));
+    U.col(i) = hs.eigenvectors().col(n - 1 - i);
+  }
   int k = 0;
   while (k < n && sig[k] > 1e-12 * sig[0]) ++k;  // minimal (controllable and observable) part
   r.hsv = sig.head(k);
-  const Eigen::VectorXd sinv = sig.head(k).cwiseSqrt().cwiseInverse();
-  const Eigen::MatrixXd T = Lc * svd.matrixV().leftCols(k) * sinv.asDiagonal();
-  const Eigen::MatrixXd Ti = sinv.asDiagonal() * svd.matrixU().leftCols(k).transpose() * Lo.transpose();
+  // T = Lo^-T U S^1/2, Ti = S^-1/2 U^T Lo^T: Ti P Ti^T = T^T Q T = diag(hsv)
+  const Eigen::VectorXd sq = sig.head(k).cwiseSqrt();
+  const Eigen::MatrixXd T = Lo.transpose().fullPivLu().solve(U.leftCols(k)) * sq.asDiagonal();
+  const Eigen::MatrixXd Ti = sq.cwiseInverse().asDiagonal() * U.leftCols(k).transpose() * Lo.transpose();
   const Eigen::MatrixXd Am = (-f.lambda).asDiagonal();
   const Eigen::MatrixXd Ab = Ti * Am * T, Bb = Ti * Bm, Cb = Cm * T;
   // Fix the sign of the balanced state so the dominant output gain is positive.
@@ -159,9 +171,13 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     fm.speed_rpm[0] = 0;
     fm.a[0] = std::exp(out.cooling.dc.pole * dt);
     fm.b[0] = 0.0;
+    // Output gains = the stop-state shape (continuous at the stop; the 1st-order model cannot
+    // follow the ~1000 s equalisation after it, which the deviation figures show). The pole is the
+    // DC-matched one of the free response (it preserves the integral of the decay).
+    (void)scale;
     for (int ch = 0; ch < 5; ++ch) {
       const int nd = o.channel_node[static_cast<std::size_t>(ch)];
-      fm.c[0][ch] = nd >= 0 ? out.cooling.dc.c[nd] / scale : 0.0;
+      fm.c[0][ch] = nd >= 0 ? x_stop[nd] / x_stop[ref_node] : 0.0;
       fm.d[0][ch] = 0.0;
     }
   }

@@ -3,6 +3,7 @@
 
 #include "fit.hpp"
 #include "simulator.hpp"
+#include "network.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
@@ -64,9 +65,37 @@ Eigen::VectorXd estimate_initial_state(const Network& net, const Eigen::VectorXd
       FtF += f * f.transpose();
       Ftr += f * r0(k, m);
     }
-  const double ridge = 1e-6 * std::max(1.0, FtF.diagonal().maxCoeff());
-  FtF.diagonal().array() += ridge;
-  return guess - FtF.ldlt().solve(Ftr);
+  // Bayesian ridge: the data (noise sigma from the residuals of the first-sample start, at least
+  // 2 mK) against a prior at the first-sample guess, 0.02 K for nodes not measured in row 0 (their
+  // start is mostly invisible: an unmeasured shaft's transient decays within minutes).
+  std::size_t cnt = 0;
+  double ss = 0;
+  for (Eigen::Index k = 0; k < r0.rows(); ++k)
+    for (Eigen::Index m = 0; m < r0.cols(); ++m)
+      if (std::isfinite(r0(k, m))) { ss += r0(k, m) * r0(k, m); ++cnt; }
+  const double sn = std::max(0.002, cnt ? std::sqrt(ss / static_cast<double>(cnt)) : 0.0);
+  const auto cols_m = measurement_columns(net, rec);
+  Eigen::VectorXd prior_sigma = Eigen::VectorXd::Constant(n, 0.02);
+  for (std::size_t m = 0; m < cols_m.size(); ++m)
+    if (std::isfinite(rec.temp_c(0, cols_m[m]))) prior_sigma[net.measurements[m].node] = 1.0;  // data decide
+  Eigen::MatrixXd A = FtF / (sn * sn);
+  A.diagonal() += prior_sigma.cwiseAbs2().cwiseInverse();
+  const Eigen::LDLT<Eigen::MatrixXd> ldlt(A);
+  Eigen::VectorXd x = guess - ldlt.solve(Ftr / (sn * sn));
+  // Second pass: the prior of each unmeasured node becomes its quasi-static value given the
+  // estimated neighbours and ambient (weights = the conductances at row 0's speed).
+  const NodeMatrices m0 = assemble(net, params, rec.speed_rpm[0]);
+  Eigen::VectorXd prior = guess;
+  for (int i = 0; i < n; ++i) {
+    if (prior_sigma[i] >= 1.0) continue;
+    double num = m0.ambient_conductance[i] * rec.ambient_c[0], den = m0.ambient_conductance[i];
+    for (int j = 0; j < n; ++j)
+      if (j != i) { num += -m0.G(i, j) * x[j]; den += -m0.G(i, j); }
+    if (den > 0) prior[i] = num / den;
+  }
+  // minimise |r0 + F (x - guess)|^2 / sn^2 + |(x - prior) / sigma_p|^2
+  const Eigen::VectorXd w = prior_sigma.cwiseAbs2().cwiseInverse();
+  return guess + ldlt.solve(-Ftr / (sn * sn) + w.cwiseProduct(prior - guess));
 }
 
 RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd& params, const Recording& rec,

@@ -1,6 +1,7 @@
 // The real AVR image in simavr with the AD7794 model on its SPI bus.
 #include "boards/sim/runner/module_board.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
+#include "firmware/device_key.hpp"
 
 #include <fstream>
 #include <stdexcept>
@@ -28,6 +29,18 @@ class AvrModuleBoard final : public ModuleBoard {
     HarnessOptions h;
     h.elf_path = o.elf_path;
     h.eeprom_path = o.eeprom_path;
+    if (!o.key_record.empty()) {
+      if (o.key_record.size() != device_key::kRecordSize || !device_key::record_valid(o.key_record.data()))
+        throw std::invalid_argument("avr board: key record must be a valid 64-byte device key record");
+      h.key_record = o.key_record;
+      h.key_record_addr = device_key::kFlashAddress;
+    } else if (o.avr_dev_key) {
+      uint8_t key[device_key::kKeySize];
+      for (uint8_t i = 0; i < device_key::kKeySize; ++i) key[i] = device_key::dev_key_byte(i);
+      h.key_record.assign(device_key::kRecordSize, 0xFF);
+      device_key::build_record(h.key_record.data(), 0x0000DE70, key);
+      h.key_record_addr = device_key::kFlashAddress;
+    }
     harness_ = std::make_unique<SimavrHarness>(h, &bus_);
     harness_->on_uart_tx = [this](uint8_t b) { out_.push_back(b); };
   }

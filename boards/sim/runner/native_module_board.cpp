@@ -6,6 +6,7 @@
 #ifdef BTSM_HAVE_FIRMWARE_APP
 #include "boards/sim/native_board.hpp"
 #include "firmware/app.hpp"
+#include "firmware/device_key.hpp"
 
 #include <cmath>
 
@@ -62,6 +63,14 @@ class NativeModuleBoard final : public ModuleBoard {
   static NativeBoardOptions board_options(const ModuleBoardOptions& o) {
     NativeBoardOptions b;
     b.adc = o.adc;
+    if (!o.key_record.empty()) {
+      if (o.key_record.size() != device_key::kRecordSize || !device_key::record_valid(o.key_record.data()))
+        throw std::invalid_argument("native board: key record must be a valid 64-byte device key record");
+      b.device_id = get_le32(o.key_record.data() + device_key::kOffsetDeviceId);
+      std::array<uint8_t, 32> key{};
+      for (size_t i = 0; i < key.size(); ++i) key[i] = o.key_record[device_key::kOffsetKey + i];
+      b.key = key;
+    }
     return b;
   }
   void boot() {

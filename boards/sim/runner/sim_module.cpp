@@ -43,6 +43,8 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
   b.elf_path = opts_.elf_path;
   b.eeprom_path = opts_.eeprom_path;
   b.tach_pulses_per_rev = opts_.tach_pulses_per_rev;
+  b.avr_dev_key = opts_.avr_dev_key;
+  b.key_record = opts_.key_record;
   board_ = opts_.board == BoardKind::Avr ? make_avr_board(b) : make_native_board(b);
   if (!opts_.truth_csv.empty()) {
     truth_ = std::make_unique<Truth>();

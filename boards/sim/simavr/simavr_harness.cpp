@@ -108,6 +108,21 @@ struct HarnessCallbacks {
     return avr->cycle + (per_byte ? per_byte : 1);
   }
 
+  // EECR written (after the EEPROM module's own handler, which performed the write if EEPE was
+  // set with EEMPE armed). Counts writes and tears the one chosen for a power cut.
+  static void eecr_write(avr_t* avr, avr_io_addr_t, uint8_t v, void* p) {
+    auto* h = self(p);
+    if (!(v & 0x02) || (v & 0x01)) return;  // EEPE set, EERE clear
+    const uint64_t index = h->counters_.eeprom_writes++;
+    if (h->cut_armed_ && index >= h->cut_at_write_) {
+      const uint16_t addr = uint16_t(avr->data[0x41] | (avr->data[0x42] << 8)) & avr->e2end;
+      uint8_t* mem = eeprom_memory(avr);
+      if (mem) mem[addr] = h->torn_value_;
+      h->cut_armed_ = false;
+      h->power_lost_ = true;
+    }
+  }
+
   static avr_cycle_count_t stop_marker(avr_t*, avr_cycle_count_t, void*) { return 0; }
 
   static avr_cycle_count_t device_event(avr_t* avr, avr_cycle_count_t, void* p) {
@@ -174,6 +189,11 @@ SimavrHarness::SimavrHarness(const HarnessOptions& opts, SpiPeripheral* spi) : o
   std::free(fw.flash);
   std::free(fw.eeprom);
   avr_->log = LOG_WARNING;
+  if (!opts_.key_record.empty()) {
+    if (opts_.key_record_addr + opts_.key_record.size() > avr_->flashend + 1u)
+      throw std::runtime_error("simavr: key record does not fit in flash");
+    std::memcpy(avr_->flash + opts_.key_record_addr, opts_.key_record.data(), opts_.key_record.size());
+  }
   avr_->custom.data = this;
   avr_->sleep = &HarnessCallbacks::sleep_hook;
   attach();
@@ -211,8 +231,9 @@ void SimavrHarness::attach() {
   avr_irq_register_notify(uart_irq_ + UART_IRQ_OUTPUT, &HarnessCallbacks::uart_output, this);
   avr_irq_register_notify(uart_irq_ + UART_IRQ_OUT_XON, &HarnessCallbacks::uart_xon, this);
   avr_irq_register_notify(uart_irq_ + UART_IRQ_OUT_XOFF, &HarnessCallbacks::uart_xoff, this);
-  // SPDR is data address 0x4E on the ATmega48/88/168/328 family.
+  // SPDR is data address 0x4E, EECR 0x3F on the ATmega48/88/168/328 family.
   avr_register_io_write(avr_, 0x4E, &HarnessCallbacks::spdr_write, this);
+  avr_register_io_write(avr_, 0x3F, &HarnessCallbacks::eecr_write, this);
   uint32_t flags = 0;
   avr_ioctl(avr_, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
   flags &= ~uint32_t(AVR_UART_FLAG_STDIO);
@@ -248,7 +269,17 @@ const char* SimavrHarness::state_name() const {
   }
 }
 
+void SimavrHarness::cut_power_at_eeprom_write(uint64_t write_index, uint8_t torn_value) {
+  cut_armed_ = true;
+  cut_at_write_ = counters_.eeprom_writes + write_index;
+  torn_value_ = torn_value;
+}
+
 bool SimavrHarness::run_until_cycle(uint64_t target) {
+  if (power_lost_) {
+    power_lost_ = false;
+    power_cycle();
+  }
   if (avr_->cycle >= target) return true;
   // A timer at the target bounds the sleep fast-forward, so a sleeping core stops there instead
   // of jumping to its next wake-up source.
@@ -260,6 +291,7 @@ bool SimavrHarness::run_until_cycle(uint64_t target) {
       ok = false;
       break;
     }
+    if (power_lost_) break;  // the supply failed: nothing runs until the next call
   }
   avr_cycle_timer_cancel(avr_, &HarnessCallbacks::stop_marker, this);
   return ok;

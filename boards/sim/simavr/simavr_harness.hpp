@@ -47,6 +47,10 @@ struct HarnessOptions {
   bool spi_real_timing = true;          // SPI byte = 8 x spi_sck_divider cycles (see above)
   int spi_sck_divider = 4;              // fosc/4 (SPR = 0, SPI2X = 0)
   uint32_t uart_baud = 115200;          // byte pacing of the host -> firmware direction
+  // Written into flash after loading (e.g. the device key record that production flashes at
+  // firmware/device_key.hpp kFlashAddress); empty = the image as built.
+  std::vector<uint8_t> key_record;
+  uint32_t key_record_addr = 0x7DC0;    // byte address in flash
 };
 
 struct HarnessStats {
@@ -58,6 +62,7 @@ struct HarnessStats {
   uint64_t uart_rx_dropped = 0; // bytes the firmware's FIFO refused
   uint64_t tach_pulses = 0;     // rising edges on the tach pin
   uint64_t power_cycles = 0;
+  uint64_t eeprom_writes = 0;   // EEPROM byte writes started by the firmware (EEPE)
   uint64_t active_cycles() const { return cycles - sleep_cycles; }
 };
 
@@ -84,6 +89,12 @@ class SimavrHarness {
   // Power: cut and restore the supply at the current instant (CPU and I/O reset, SRAM contents
   // lost to the reset, EEPROM kept, the SPI device power-on reset too).
   void power_cycle();
+  // Power-loss injection: the supply fails during EEPROM byte write number `write_index`
+  // (counted from now, 0 = the next one). That cell is torn (gets `torn_value`), the run stops
+  // at once (run_until* return true with power_lost() set), and the next run_until* call first
+  // restores the power (power_cycle()).
+  void cut_power_at_eeprom_write(uint64_t write_index, uint8_t torn_value = 0xFF);
+  bool power_lost() const { return power_lost_; }
 
   // UART.
   std::function<void(uint8_t)> on_uart_tx;
@@ -135,6 +146,10 @@ class SimavrHarness {
   HarnessStats counters_;
   uint64_t spi_raise_when_ = 0;
   std::vector<uint8_t> eeprom_init_;
+  bool cut_armed_ = false;
+  uint64_t cut_at_write_ = 0;
+  uint8_t torn_value_ = 0xFF;
+  bool power_lost_ = false;
 };
 
 }  // namespace btsm::sim

@@ -27,6 +27,7 @@ class SpiModelAdapter final : public SpiPeripheral {
   bool dout_low() override { return m_.rdy_low(); }
   void advance(double s) override { m_.advance(s); }
   double time_to_next_event() override { return m_.time_to_next_event(); }
+  void power_on_reset() override { m_.power_on_reset(); }
 
  private:
   Model& m_;

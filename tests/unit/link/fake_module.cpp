@@ -210,6 +210,7 @@ void FakeModule::handle(uint8_t type, uint8_t seq, const uint8_t* p, uint8_t len
       ModelChunk c{};
       if (!decode_model_chunk(p, len, c)) return ack(seq, type, Nack::BadLength);
       if (!upload_open_) return ack(seq, type, Nack::NoSession);
+      if (opts_.busy_every && ++chunk_counter_ % opts_.busy_every == 0) return ack(seq, type, Nack::Busy);
       if (c.offset != staging_.size() || c.offset + c.len > staging_len_)
         return ack(seq, type, Nack::BadOffset, static_cast<uint16_t>(staging_.size()));
       staging_.insert(staging_.end(), c.data, c.data + c.len);

@@ -27,6 +27,7 @@ struct FakeModuleOptions {
   bool stream_samples = true;
   bool answer_get_config = true;            // false: NACK UNKNOWN_TYPE like an older firmware
   uint32_t sample_time_step_ms = 5000;      // module time between samples
+  uint32_t busy_every = 0;                  // answer every Nth MODEL_CHUNK with BUSY (0 = never)
   FakeModuleOptions();
 };
 
@@ -83,6 +84,7 @@ class FakeModule {
   uint32_t staging_crc_ = 0;
   uint32_t accepted_ = 0, refused_ = 0, sent_ = 0;
   uint32_t nonce_counter_ = 0;
+  uint32_t chunk_counter_ = 0;
   int32_t config_[256] = {};
   std::vector<std::vector<uint8_t>> commits_;
 };

@@ -47,8 +47,9 @@ uint16_t FakePeripheral::add_characteristic(const Uuid& uuid, uint8_t properties
   return vh;
 }
 
-void FakePeripheral::bridge(uint16_t value_handle, int stream_fd) {
-  bridged_handle_ = value_handle;
+void FakePeripheral::bridge(uint16_t write_handle, uint16_t notify_handle, int stream_fd) {
+  bridged_handle_ = write_handle;
+  notify_handle_ = notify_handle;
   stream_fd_ = stream_fd;
 }
 
@@ -61,6 +62,12 @@ void FakePeripheral::start(int fd) {
 void FakePeripheral::stop() {
   running_ = false;
   if (thread_.joinable()) thread_.join();
+}
+
+void FakePeripheral::disconnect() {
+  stop();
+  if (fd_ >= 0) ::close(fd_);
+  fd_ = -1;
 }
 
 void FakePeripheral::send(const Pdu& pdu) {
@@ -210,7 +217,7 @@ void FakePeripheral::run() {
         const size_t chunk = static_cast<size_t>(mtu_ - 3);
         for (ssize_t at = 0; at < r; at += static_cast<ssize_t>(chunk)) {
           const size_t len = std::min(chunk, static_cast<size_t>(r - at));
-          notify(bridged_handle_, Bytes(sbuf + at, sbuf + at + len));
+          notify(notify_handle_, Bytes(sbuf + at, sbuf + at + len));
         }
       }
     }

@@ -38,13 +38,15 @@ class FakePeripheral {
   void add_service(const att::Uuid& uuid);
   uint16_t add_characteristic(const att::Uuid& uuid, uint8_t properties, att::Bytes value = {});
   void set_server_mtu(uint16_t mtu) { server_mtu_ = mtu; }
-  // Bytes written to `value_handle` go to stream_fd; bytes read from stream_fd are notified
-  // from it. Takes ownership of stream_fd.
-  void bridge(uint16_t value_handle, int stream_fd);
+  // Bytes written to `write_handle` go to stream_fd; bytes read from stream_fd are notified
+  // from `notify_handle`. Takes ownership of stream_fd.
+  void bridge(uint16_t write_handle, uint16_t notify_handle, int stream_fd);
 
   // Serves on fd (takes ownership) in a thread.
   void start(int fd);
   void stop();
+  // Drops the link: stops serving and closes the bearer.
+  void disconnect();
 
   // Sends a notification now if the client enabled it (thread-safe). Returns false otherwise.
   bool notify(uint16_t value_handle, const att::Bytes& value);
@@ -77,6 +79,7 @@ class FakePeripheral {
   int fd_ = -1;
   int stream_fd_ = -1;
   uint16_t bridged_handle_ = 0;
+  uint16_t notify_handle_ = 0;
   std::thread thread_;
   std::atomic<bool> running_{false};
   mutable std::mutex mu_;

@@ -84,9 +84,9 @@ void FaultProxy::run() {
       for (ssize_t i = 0; i < n; ++i) {
         if (from_host && plan_.disconnect_after_host_bytes >= 0 && host_bytes_ >= plan_.disconnect_after_host_bytes) {
           // Pull the plug: the host sees its tty hang up mid-transfer.
+          disconnected_ = true;  // before close: the host may look as soon as it sees the hang-up
           ::close(host_fd_);
           host_fd_ = -1;
-          disconnected_ = true;
           break;
         }
         if (from_host) ++host_bytes_;

@@ -12,6 +12,7 @@
 #include <sys/socket.h>
 
 #include <cstring>
+#include <iostream>
 #include <set>
 
 using namespace btsm;
@@ -133,10 +134,14 @@ TEST_P(FlashFaults, ModelIsOldOrNewNeverHalf) {
     err = e.what();
   }
   const auto active = rig.module->active_model();
+  std::cout << "seed " << GetParam() << ": " << (ok ? "verified" : "failed: " + err) << " (bytes dropped "
+            << rig.proxy->dropped() << ", flipped " << rig.proxy->flipped() << ")\n";
   EXPECT_TRUE(active == old_blob || active == new_blob) << "half-written model";
-  if (ok) EXPECT_EQ(active, new_blob);
-  // A failure is an error the user sees, never a silently wrong model.
-  if (!ok) EXPECT_FALSE(err.empty());
+  if (ok) {
+    EXPECT_EQ(active, new_blob);
+  } else {
+    EXPECT_FALSE(err.empty());  // a failure is an error the user sees, never a silently wrong model
+  }
 }
 
 INSTANTIATE_TEST_SUITE_P(Seeds, FlashFaults, ::testing::Values(11u, 12u, 13u, 14u, 15u));

@@ -9,6 +9,7 @@
 #include <gtest/gtest.h>
 
 #include <fstream>
+#include <iostream>
 
 using namespace btsm;
 using namespace btsm::link;
@@ -49,6 +50,8 @@ TEST(FlashModel, RoundTripWithReadBackAndTwentyByteFrames) {
   fo.progress = [&](const FlashProgress&) { ++progress_calls; };
   const FlashSummary s = flash_model(rig.session, blob, dev_key(), fo);
   EXPECT_TRUE(s.verified);
+  std::cout << "464-byte blob: " << s.chunks << " chunks, largest encoded chunk frame " << s.max_chunk_frame
+            << " bytes\n";
   EXPECT_EQ(s.device_id, 0x0000DE70u);
   EXPECT_LE(s.max_chunk_frame, 20u);       // every chunk fits one BLE write
   EXPECT_GE(s.chunks, blob.size() / 10);    // <= 10 data bytes per 20-byte frame
@@ -153,4 +156,14 @@ TEST(FlashModel, LoadsBinJsonHexAndJsonPath) {
   EXPECT_THROW(load_model_blob(dir.path + "/missing.bin"), std::runtime_error);
   EXPECT_EQ(check_model_blob(blob), "");
   EXPECT_NE(check_model_blob(std::span<const uint8_t>(blob).first(100)), "");
+}
+
+TEST(FlashModel, BusyAnswersAreRetriedNotFatal) {
+  FakeModuleOptions o;
+  o.busy_every = 5;
+  Rig rig(o);
+  const auto blob = test::make_test_blob(5);
+  EXPECT_TRUE(flash_model(rig.session, blob, dev_key()).verified);
+  EXPECT_GT(rig.session.busy_answers(), 0u);
+  EXPECT_EQ(rig.module.active_model(), blob);
 }

@@ -199,3 +199,18 @@ TEST(Record, GapsBecomeDroppedLinesAndNeverRows) {
   EXPECT_EQ(rec.rows(), 30u);
   EXPECT_EQ(rec.meta_value("module_restarts"), "1");
 }
+
+TEST(Monitor, LineShowsTemperaturesPredictionsAndFaults) {
+  ChannelRoles roles;
+  for (uint8_t i = 0; i < wire::kChannels; ++i) roles.role[i] = static_cast<uint8_t>(wire::default_channel_role(i));
+  auto s = FakeModule::sample_for(3, 6000, 5000);  // index 3: channel 5 open
+  s.predicted_mK[0] = 21500;
+  s.overall |= wire::kOverallModelActive;
+  const std::string line = format_sample_line(s, roles);
+  EXPECT_NE(line.find("6000 rpm"), std::string::npos) << line;
+  EXPECT_NE(line.find("(pred  21.500)"), std::string::npos) << line;
+  EXPECT_NE(line.find("SENSOR_FAULT/open"), std::string::npos) << line;
+  EXPECT_NE(line.find("model"), std::string::npos) << line;
+  roles.role[4] = static_cast<uint8_t>(wire::ChannelRole::Disabled);
+  EXPECT_EQ(format_sample_line(s, roles).find("T5"), std::string::npos);
+}

@@ -1,0 +1,66 @@
+#include "host/link/link_open.hpp"
+
+#include "host/link/ble_transport.hpp"
+#include "host/link/link_error.hpp"
+#include "host/link/rfcomm_transport.hpp"
+#include "host/link/serial_transport.hpp"
+#include "host/link/usb_devices.hpp"
+
+#include <algorithm>
+
+namespace btsm::link {
+namespace {
+
+std::vector<UsbSerialDevice> usb_devices(const std::string& sysfs_root) {
+  std::vector<UsbId> ids;
+  try {
+    ids = libusb_ids();
+  } catch (const LinkError&) {
+    ids = sysfs_usb_ids(sysfs_root);  // no libusb access (container): sysfs has the same ids
+  }
+  return describe_usb_serial(ids, sysfs_root);
+}
+
+std::string only_adapter_tty(const std::string& sysfs_root) {
+  std::vector<std::string> ttys;
+  for (const auto& d : usb_devices(sysfs_root))
+    for (const auto& t : d.ttys) ttys.push_back(t);
+  if (ttys.size() == 1) return ttys.front();
+  if (ttys.empty())
+    throw LinkError(LinkErrorKind::kNoDevice,
+                    "no link given and no USB serial adapter found: pass --port PATH, --ble ADDR, --rfcomm ADDR or "
+                    "--usb VID:PID (`btsm list` and `btsm scan` find modules)");
+  std::string all;
+  for (const auto& t : ttys) all += " " + t;
+  throw LinkError(LinkErrorKind::kNoDevice, "several serial adapters are connected (" + all.substr(1) +
+                                                "): choose one with --port");
+}
+
+}  // namespace
+
+std::string serial_port_for(const LinkSpec& spec) {
+  if (!spec.ble.empty() || !spec.rfcomm.empty())
+    throw LinkError(LinkErrorKind::kUnsupported,
+                    "firmware is flashed through the module's USB serial port (Optiboot), not over Bluetooth: "
+                    "connect it by USB and pass --port or --usb");
+  if (!spec.port.empty()) return spec.port;
+  if (!spec.usb.empty()) return tty_for_usb(spec.usb, usb_devices(spec.sysfs_root));
+  return only_adapter_tty(spec.sysfs_root);
+}
+
+TransportPtr open_link(const LinkSpec& spec) {
+  const auto timeout = Millis(static_cast<long>(spec.timeout_s * 1000));
+  if (!spec.ble.empty()) {
+    GattSerialOptions o;
+    o.att_timeout = std::max(timeout, Millis(2000));
+    return open_ble(spec.ble, std::max(timeout, Millis(10000)), o);
+  }
+  if (!spec.rfcomm.empty()) {
+    RfcommOptions o;
+    o.channel = spec.rfcomm_channel;
+    return std::make_unique<RfcommTransport>(spec.rfcomm, o);
+  }
+  return std::make_unique<SerialTransport>(serial_port_for(spec));
+}
+
+}  // namespace btsm::link

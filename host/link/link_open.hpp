@@ -1,0 +1,24 @@
+#pragma once
+// Opening the link a device command asked for: --port, --ble, --rfcomm, --usb, or (none given)
+// the only USB serial adapter present.
+#include "host/link/transport.hpp"
+
+#include <string>
+
+namespace btsm::link {
+
+struct LinkSpec {
+  std::string port, ble, rfcomm, usb;
+  int rfcomm_channel = 1;
+  double timeout_s = 2.0;  // connect / reply timeout, s
+  std::string sysfs_root = "/sys";
+};
+
+// Throws LinkError (kNoDevice with what to do when nothing is selected or found).
+TransportPtr open_link(const LinkSpec& spec);
+
+// The serial port a spec designates (for avrdude): --port, or the tty of --usb / the only
+// adapter. BLE and RFCOMM are refused: the bootloader listens on the USB serial port only.
+std::string serial_port_for(const LinkSpec& spec);
+
+}  // namespace btsm::link

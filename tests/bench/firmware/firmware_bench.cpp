@@ -1,0 +1,187 @@
+// Firmware figures: flash/RAM use of the AVR image, CPU cycles per full 5-channel sample cycle
+// measured in simavr (active cycles = not sleeping, with the sweep separated from the idle
+// timer-tick load), the resulting CPU duty at the sample period, and the simulated-time speed-up
+// of the simulated module on both boards. Prints figures; asserts nothing about time.
+//   firmware_bench [path/to/btsm-fw-bluno.elf]
+#include "boards/sim/ad7794_model.hpp"
+#include "boards/sim/plant/probes.hpp"
+#include "boards/sim/runner/sim_module.hpp"
+#include "boards/sim/simavr/simavr_harness.hpp"
+
+#include <elf.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cstdio>
+#include <cstdlib>
+#include <cstring>
+#include <filesystem>
+#include <fstream>
+#include <map>
+#include <string>
+#include <vector>
+
+namespace {
+
+struct SectionSizes {
+  std::map<std::string, uint64_t> by_name;
+  uint64_t flash = 0;  // allocated sections in program memory + .data initialisers
+  uint64_t ram = 0;    // .data + .bss + .noinit
+};
+
+// Reads the ELF32 section table (AVR images are 32-bit little-endian ELF).
+SectionSizes elf_sections(const std::string& path) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> f((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  if (f.size() < sizeof(Elf32_Ehdr) || std::memcmp(f.data(), ELFMAG, SELFMAG) != 0 || f[EI_CLASS] != ELFCLASS32)
+    throw std::runtime_error(path + ": not an ELF32 file");
+  Elf32_Ehdr eh;
+  std::memcpy(&eh, f.data(), sizeof eh);
+  if (eh.e_shoff + size_t(eh.e_shnum) * sizeof(Elf32_Shdr) > f.size()) throw std::runtime_error(path + ": truncated");
+  std::vector<Elf32_Shdr> sh(eh.e_shnum);
+  std::memcpy(sh.data(), f.data() + eh.e_shoff, sh.size() * sizeof(Elf32_Shdr));
+  const Elf32_Shdr& strtab = sh.at(eh.e_shstrndx);
+  SectionSizes s;
+  for (const auto& h : sh) {
+    if (!(h.sh_flags & SHF_ALLOC) || h.sh_size == 0) continue;
+    const std::string name = f.data() + strtab.sh_offset + h.sh_name;
+    s.by_name[name] += h.sh_size;
+    if (h.sh_addr >= 0x800000) {  // data address space (SRAM, EEPROM, fuses, .mmcu metadata)
+      if (name == ".data" || name == ".bss" || name == ".noinit") s.ram += h.sh_size;
+      if (name == ".data") s.flash += h.sh_size;  // initialisers are stored in flash
+    } else {
+      s.flash += h.sh_size;
+    }
+  }
+  return s;
+}
+
+struct CycleFigures {
+  double sweep_cycles = 0;        // mean active cycles per 5-channel sample cycle, idle load removed
+  double sweep_cycles_max = 0;
+  double idle_cycles_per_s = 0;   // timer ticks etc. outside sweeps
+  double duty_total = 0;          // active / total over the whole run
+  double period_s = 0;
+  int sweeps = 0;
+  uint64_t spi_bytes_per_sweep = 0;
+};
+
+// Runs the image for `seconds` with fixed probe resistances, in 2 ms bins. A sweep is the stretch
+// from the first to the last SPI byte of a sample period plus 40 ms for the frame to be sent.
+CycleFigures measure_cycles(const std::string& elf, double seconds) {
+  btsm::sim::Ad7794Model adc;
+  const double temps[5] = {33.5, 32.1, 30.7, 20.0, 26.0};
+  for (int i = 0; i < 5; ++i) adc.front_end().probe_ohm[size_t(i)] = btsm::sim::pt1000_ohm(temps[i]);
+  btsm::sim::SpiModelAdapter<btsm::sim::Ad7794Model> bus(adc);
+  btsm::sim::HarnessOptions o;
+  o.elf_path = elf;
+  btsm::sim::SimavrHarness h(o, &bus);
+  h.set_tach_hz(100.0);
+  const double bin = 0.002;
+  std::vector<uint64_t> active, spi;
+  h.run_until(2.0);  // boot and calibration are not part of the steady-state figure
+  auto last = h.stats();
+  const int bins = int(seconds / bin);
+  for (int i = 0; i < bins; ++i) {
+    h.run_until(2.0 + (i + 1) * bin);
+    const auto s = h.stats();
+    active.push_back(s.active_cycles() - last.active_cycles());
+    spi.push_back(s.spi_bytes - last.spi_bytes);
+    last = s;
+  }
+  // Group SPI activity into sweeps (gaps > 1 s separate sweeps).
+  std::vector<std::pair<int, int>> sweeps;
+  for (int i = 0; i < bins; ++i) {
+    if (!spi[size_t(i)]) continue;
+    if (!sweeps.empty() && i - sweeps.back().second < int(1.0 / bin)) sweeps.back().second = i;
+    else sweeps.push_back({i, i});
+  }
+  std::vector<bool> in_sweep(size_t(bins), false);
+  const int tail = int(0.040 / bin);
+  for (auto& sw : sweeps) {
+    sw.second = std::min(bins - 1, sw.second + tail);
+    for (int i = sw.first; i <= sw.second; ++i) in_sweep[size_t(i)] = true;
+  }
+  double idle_active = 0;
+  int idle_bins = 0;
+  for (int i = 0; i < bins; ++i)
+    if (!in_sweep[size_t(i)]) idle_active += double(active[size_t(i)]), ++idle_bins;
+  CycleFigures c;
+  c.idle_cycles_per_s = idle_bins ? idle_active / (idle_bins * bin) : 0.0;
+  // Only complete sweeps: the first and last groups may be cut by the ends of the run.
+  double sum = 0;
+  uint64_t spi_sum = 0;
+  for (size_t k = 1; k + 1 < sweeps.size(); ++k) {
+    const auto& sw = sweeps[k];
+    double a = 0;
+    for (int i = sw.first; i <= sw.second; ++i) a += double(active[size_t(i)]), spi_sum += spi[size_t(i)];
+    const double cost = a - c.idle_cycles_per_s * (sw.second - sw.first + 1) * bin;
+    sum += cost;
+    c.sweep_cycles_max = std::max(c.sweep_cycles_max, cost);
+    ++c.sweeps;
+  }
+  if (c.sweeps) {
+    c.sweep_cycles = sum / c.sweeps;
+    c.spi_bytes_per_sweep = spi_sum / uint64_t(c.sweeps);
+  }
+  if (std::getenv("BTSM_BENCH_VERBOSE"))
+    for (const auto& sw : sweeps) std::printf("   sweep %.3f .. %.3f s\n", 2.0 + sw.first * bin, 2.0 + sw.second * bin);
+  if (sweeps.size() >= 3) c.period_s = (sweeps[sweeps.size() - 2].first - sweeps[1].first) * bin / double(sweeps.size() - 3);
+  const auto s = h.stats();
+  c.duty_total = double(s.active_cycles()) / double(s.cycles);
+  return c;
+}
+
+double speedup(btsm::sim::BoardKind kind, const std::string& elf, double sim_s) {
+  btsm::sim::SimModuleOptions o;
+  o.board = kind;
+  o.elf_path = elf;
+  o.plant.speed = btsm::sim::SpeedProfile::parse("30m@6000,30m@0");
+  btsm::sim::SimModule m(o);
+  const auto t0 = std::chrono::steady_clock::now();
+  double done = 0;
+  while (done < sim_s) {
+    m.run_for(10.0);
+    m.host_receive();
+    done += 10.0;
+  }
+  const double wall = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return done / wall;
+}
+
+}  // namespace
+
+int main(int argc, char** argv) {
+  const std::string elf = argc > 1 ? argv[1] : std::string(BTSM_BIN_DIR) + "/btsm-fw-bluno.elf";
+  std::printf("== firmware bench (image %s)\n", elf.c_str());
+  if (!std::filesystem::exists(elf)) {
+    std::printf("image missing: only the native speed-up is measured\n");
+  } else {
+    const auto s = elf_sections(elf);
+    std::printf("-- memory (ELF sections)\n");
+    for (const auto& [name, size] : s.by_name) std::printf("   %-12s %6llu B\n", name.c_str(), (unsigned long long)size);
+    std::printf("   flash (text + data + other program-memory sections): %llu B of 30720 B budget (%.1f %%) %s\n",
+                (unsigned long long)s.flash, 100.0 * double(s.flash) / 30720.0, s.flash <= 30720 ? "OK" : "OVER BUDGET");
+    std::printf("   RAM (data + bss): %llu B of 1536 B budget (%.1f %%) %s\n", (unsigned long long)s.ram,
+                100.0 * double(s.ram) / 1536.0, s.ram <= 1536 ? "OK" : "OVER BUDGET");
+
+    const auto c = measure_cycles(elf, 42.0);
+    std::printf("-- CPU (simavr, 16 MHz, SPI at fosc/4, %d sweeps)\n", c.sweeps);
+    std::printf("   active cycles per 5-channel sample cycle (idle tick load removed): mean %.0f, max %.0f"
+                " (target <= 40000: %s)\n", c.sweep_cycles, c.sweep_cycles_max, c.sweep_cycles <= 40000 ? "met" : "NOT met");
+    std::printf("   SPI bytes per sweep: %llu\n", (unsigned long long)c.spi_bytes_per_sweep);
+    std::printf("   idle load outside sweeps: %.0f cycles/s (%.2f %% of the CPU)\n", c.idle_cycles_per_s,
+                100.0 * c.idle_cycles_per_s / 16e6);
+    if (c.period_s > 0)
+      std::printf("   sample period %.2f s: sweep duty %.4f %% (target < 1 %%), total duty incl. idle load %.3f %%\n",
+                  c.period_s, 100.0 * c.sweep_cycles / (c.period_s * 16e6), 100.0 * c.duty_total);
+  }
+  std::printf("-- simulated-time speed-up (sim s per wall s, 1 h profile, plant + AD7794 + firmware)\n");
+  const double native = speedup(btsm::sim::BoardKind::Native, elf, 3600.0);
+  std::printf("   native board: %.0fx\n", native);
+  if (std::filesystem::exists(elf)) {
+    const double avr = speedup(btsm::sim::BoardKind::Avr, elf, 300.0);
+    std::printf("   avr board (simavr): %.0fx (native / avr = %.0f)\n", avr, native / avr);
+  }
+  return 0;
+}

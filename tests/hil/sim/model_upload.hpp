@@ -1,0 +1,142 @@
+#pragma once
+// Test helper: a valid reduced-model blob for the spindle and the host side of the authenticated
+// model upload (MODEL_BEGIN -> AUTH_CHALLENGE, MODEL_CHUNKs each ACKed, MODEL_COMMIT with
+// HMAC-SHA256(device key, nonce || blob)), written over any simulated link.
+//
+// A Link provides: void send(const std::vector<uint8_t>&); void step(double sim_s);
+// test::Capture& capture().
+#include "common/crc.hpp"
+#include "common/hmac.hpp"
+#include "common/reduced_model.hpp"
+#include "firmware/device_key.hpp"
+#include "wire_capture.hpp"
+
+#include <array>
+#include <algorithm>
+#include <cmath>
+#include <functional>
+#include <stdexcept>
+#include <string>
+#include <vector>
+
+namespace btsm::test {
+
+// A plausible 1st-order model of the spindle (2 breakpoints: stopped, 6000 rpm) with wide
+// bands so it never raises an alarm on its own; `variant` changes the WARN band so two models
+// have different blobs and CRCs.
+inline std::vector<uint8_t> spindle_model_blob(int variant) {
+  ReducedModelF64 f;
+  f.dt_ms = 5000;
+  f.n_breakpoints = 2;
+  f.speed_rpm[0] = 0;
+  f.speed_rpm[1] = 6000;
+  const double tau_s[2] = {3000.0, 2650.0};
+  const double rise_k[5] = {13.6, 12.2, 10.7, 0.0, 6.1};  // steady rises at 6000 rpm
+  for (int k = 0; k < 2; ++k) {
+    f.a[k] = std::exp(-5.0 / tau_s[k]);
+    f.b[k] = k == 0 ? 0.0 : (1.0 - f.a[k]);  // x settles to 1 at 6000 rpm
+    for (int j = 0; j < 5; ++j) {
+      f.c[k][j] = rise_k[j];
+      f.d[k][j] = 0.0;
+    }
+  }
+  for (int j = 0; j < 5; ++j) {
+    f.warn_band_k[j] = 20.0 + variant;
+    f.alarm_band_k[j] = 40.0;
+    f.abs_limit_c[j] = 120.0;
+    f.max_rise_k_per_min[j] = 0.0;
+  }
+  ReducedModel q{};
+  const ModelCheck c = quantize(f, q);
+  if (c.status != ModelStatus::kOk) throw std::runtime_error(std::string("test model: ") + model_status_name(c.status));
+  std::vector<uint8_t> blob(kReducedModelBlobSize);
+  encode(q, blob.data());
+  return blob;
+}
+
+inline std::array<uint8_t, 32> development_key() {
+  std::array<uint8_t, 32> k{};
+  for (uint8_t i = 0; i < 32; ++i) k[i] = device_key::dev_key_byte(i);
+  return k;
+}
+
+// Largest chunk whose encoded MODEL_CHUNK frame fits one 20-byte BLE write.
+inline uint8_t chunk_len_at(const std::vector<uint8_t>& blob, size_t off) {
+  for (uint8_t n = 16; n > 0; --n) {
+    if (off + n > blob.size()) continue;
+    uint8_t p[2 + 16];
+    p[0] = uint8_t(off);
+    p[1] = uint8_t(off >> 8);
+    for (uint8_t i = 0; i < n; ++i) p[2 + i] = blob[off + i];
+    if (frame(uint8_t(wire::MsgType::ModelChunk), 0, p, uint8_t(2 + n)).size() <= wire::kBleWriteSize) return n;
+  }
+  return uint8_t(std::min<size_t>(1, blob.size() - off));
+}
+
+template <class Link>
+bool wait_for(Link& link, double max_s, const std::function<bool()>& done, double step_s = 0.01) {
+  for (double t = 0; t < max_s; t += step_s) {
+    if (done()) return true;
+    link.step(step_s);
+  }
+  return done();
+}
+
+// Sends everything up to (not including) MODEL_COMMIT. Returns the commit frame to send.
+template <class Link>
+std::vector<uint8_t> prepare_upload(Link& link, const std::vector<uint8_t>& blob, uint8_t& seq) {
+  Capture& cap = link.capture();
+  uint8_t p[wire::kMaxPayload];
+  p[0] = uint8_t(blob.size());
+  p[1] = uint8_t(blob.size() >> 8);
+  put_le32(p + 2, crc32(blob.data(), blob.size()));
+  const size_t ch0 = cap.challenges.size();
+  link.send(frame(uint8_t(wire::MsgType::ModelBegin), seq++, p, 6));
+  if (!wait_for(link, 2.0, [&] { return cap.challenges.size() > ch0; }))
+    throw std::runtime_error("no AUTH_CHALLENGE after MODEL_BEGIN");
+  const wire::AuthChallenge nonce = cap.challenges.back();
+  for (size_t off = 0; off < blob.size();) {
+    const uint8_t n = chunk_len_at(blob, off);
+    p[0] = uint8_t(off);
+    p[1] = uint8_t(off >> 8);
+    for (uint8_t i = 0; i < n; ++i) p[2 + i] = blob[off + i];
+    const size_t a0 = cap.acks.size();
+    const uint8_t s = seq++;
+    link.send(frame(uint8_t(wire::MsgType::ModelChunk), s, p, uint8_t(2 + n)));
+    if (!wait_for(link, 2.0, [&] { return cap.acks.size() > a0; }))
+      throw std::runtime_error("no ACK for MODEL_CHUNK at offset " + std::to_string(off));
+    if (cap.acks.back().status != 0)
+      throw std::runtime_error("MODEL_CHUNK at " + std::to_string(off) + " refused, code " +
+                               std::to_string(cap.acks.back().status));
+    off += n;
+  }
+  const auto key = development_key();
+  HmacSha256 mac(key.data(), key.size());
+  mac.update(nonce.nonce, wire::kNonceSize);
+  mac.update(blob.data(), blob.size());
+  uint8_t tag[32];
+  mac.final(tag);
+  return frame(uint8_t(wire::MsgType::ModelCommit), seq++, tag, 32);
+}
+
+// Full upload; returns the ACK status of MODEL_COMMIT (0 = stored).
+template <class Link>
+int upload_model(Link& link, const std::vector<uint8_t>& blob, uint8_t& seq) {
+  const auto commit = prepare_upload(link, blob, seq);
+  Capture& cap = link.capture();
+  const size_t a0 = cap.acks.size();
+  link.send(commit);
+  if (!wait_for(link, 5.0, [&] { return cap.acks.size() > a0; })) return -1;
+  return cap.acks.back().status;
+}
+
+template <class Link>
+wire::Info get_info(Link& link, uint8_t& seq) {
+  Capture& cap = link.capture();
+  const size_t i0 = cap.infos.size();
+  link.send(frame(uint8_t(wire::MsgType::GetInfo), seq++, nullptr, 0));
+  if (!wait_for(link, 2.0, [&] { return cap.infos.size() > i0; })) throw std::runtime_error("no INFO answer");
+  return cap.infos.back();
+}
+
+}  // namespace btsm::test

@@ -1,0 +1,77 @@
+// The real AVR image in simavr: power cuts at >= 200 random EEPROM-write positions while a new
+// model is uploaded; every boot afterwards reports a valid model, the old or the new one.
+#include "avr_link.hpp"
+#include "tests/hil/sim/model_upload.hpp"
+
+#include <gtest/gtest.h>
+
+#include <random>
+
+namespace btsm::test {
+namespace {
+
+class AvrPowerLoss : public ::testing::Test {
+ protected:
+  void SetUp() override {
+    if (!std::filesystem::exists(firmware_elf())) GTEST_SKIP() << "firmware image missing: " << firmware_elf();
+  }
+};
+
+TEST_F(AvrPowerLoss, EveryBootHasTheOldOrTheNewModel) {
+  const auto blob_a = spindle_model_blob(0), blob_b = spindle_model_blob(1);
+  const uint32_t crc_a = blob_stored_crc(blob_a.data()), crc_b = blob_stored_crc(blob_b.data());
+  uint8_t seq = 0;
+  std::vector<uint8_t> image_a;
+  {
+    AvrLink l;
+    l.step(0.5);
+    ASSERT_EQ(upload_model(l, blob_a, seq), 0);
+    l.step(0.1);
+    ASSERT_EQ(get_info(l, seq).model_crc, crc_a);
+    image_a = l.h->eeprom();
+  }
+  uint64_t upload_writes = 0;
+  {
+    AvrLink l;
+    l.h->set_eeprom(image_a);
+    l.step(0.5);
+    const uint64_t w0 = l.h->stats().eeprom_writes;
+    ASSERT_EQ(upload_model(l, blob_b, seq), 0);
+    upload_writes = l.h->stats().eeprom_writes - w0;
+    ASSERT_EQ(get_info(l, seq).model_crc, crc_b);
+  }
+  ASSERT_GE(upload_writes, 464u);
+
+  std::mt19937_64 rng(77);
+  std::vector<uint64_t> cuts;
+  std::uniform_int_distribution<uint64_t> pick(0, upload_writes + 19);
+  for (int i = 0; i < 200; ++i) cuts.push_back(pick(rng));
+  for (uint64_t k = upload_writes - 12; k < upload_writes; ++k) cuts.push_back(k);
+  int old_model = 0, new_model = 0;
+  for (size_t trial = 0; trial < cuts.size(); ++trial) {
+    SCOPED_TRACE("trial " + std::to_string(trial) + ", cut at EEPROM write " + std::to_string(cuts[trial]));
+    AvrLink l;
+    l.h->set_eeprom(image_a);
+    l.step(0.3);
+    l.h->cut_power_at_eeprom_write(cuts[trial], uint8_t(rng()));
+    int status = -1;
+    try {
+      status = upload_model(l, blob_b, seq);
+    } catch (const std::runtime_error&) {
+    }
+    if (cuts[trial] < upload_writes) ASSERT_TRUE(l.h->power_lost());
+    else ASSERT_EQ(status, 0);
+    l.reboot();
+    l.step(0.3);
+    const wire::Info info = get_info(l, seq);
+    ASSERT_TRUE(info.model_crc == crc_a || info.model_crc == crc_b) << "model crc " << info.model_crc;
+    (info.model_crc == crc_a ? old_model : new_model)++;
+  }
+  std::printf("%zu trials (cuts during %llu-write uploads, some just after): %d old model, %d new\n", cuts.size(),
+              static_cast<unsigned long long>(upload_writes), old_model, new_model);
+  EXPECT_GT(old_model, 0);
+  EXPECT_GT(new_model, 0);
+}
+
+}  // namespace
+}  // namespace btsm::test

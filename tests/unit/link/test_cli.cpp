@@ -1,0 +1,165 @@
+// The link commands as a user runs them: a separate process (btsm_link_cli = main.cpp +
+// cmd_link.cpp) against the in-process fake module on a pty, with HOME in a temp dir.
+#include "fake_module.hpp"
+#include "firmware/device_key.hpp"
+#include "host/link/firmware_image.hpp"
+#include "host/thermal/recording.hpp"
+#include "link_test_support.hpp"
+
+#include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
+
+#include <sys/stat.h>
+#include <sys/wait.h>
+
+#include <fmt/format.h>
+
+#include <fstream>
+#include <sstream>
+
+using namespace btsm;
+using btsm::test::FakeModule;
+
+namespace {
+
+struct Result {
+  int code = -1;
+  std::string out, err;
+};
+
+std::string slurp(const std::string& p) {
+  std::ifstream in(p);
+  std::stringstream ss;
+  ss << in.rdbuf();
+  return ss.str();
+}
+
+// Runs the CLI with HOME=<home>, XDG_CONFIG_HOME unset.
+Result run(const test::TempDir& home, const std::string& args) {
+  const std::string out = home.path + "/stdout.txt", err = home.path + "/stderr.txt";
+  const std::string cmd = "env -u XDG_CONFIG_HOME HOME='" + home.path + "' " + BTSM_LINK_CLI + " " + args + " >'" + out +
+                          "' 2>'" + err + "' </dev/null";
+  const int st = std::system(cmd.c_str());
+  Result r;
+  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
+  r.out = slurp(out);
+  r.err = slurp(err);
+  return r;
+}
+
+struct ModuleOnPty {
+  test::PtyPair pty;
+  FakeModule module;
+  explicit ModuleOnPty(test::FakeModuleOptions o = {}) : module(pty.release_master(), o) { module.start(); }
+};
+
+}  // namespace
+
+TEST(LinkCli, EveryCommandHasHelp) {
+  test::TempDir home;
+  for (const char* c : {"list", "scan", "info", "monitor", "record", "set-speed", "set-config", "ack-alarm",
+                        "flash-model", "flash-firmware", "keys"}) {
+    const Result r = run(home, std::string(c) + " --help");
+    EXPECT_EQ(r.code, 0) << c << r.err;
+    EXPECT_GT(r.out.size(), 200u) << c;
+  }
+  EXPECT_NE(run(home, "record --help").out.find("# dropped: a-b"), std::string::npos);
+  EXPECT_NE(run(home, "set-config --help").out.find("sample_period_ms"), std::string::npos);
+}
+
+TEST(LinkCli, InfoRecordSetConfigAgainstTheFakeModule) {
+  test::TempDir home;
+  test::FakeModuleOptions o;
+  o.sample_period = std::chrono::milliseconds(2);
+  ModuleOnPty m(o);
+  Result r = run(home, "info --json --port " + m.pty.path);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["device_id"], "0000de70");
+  EXPECT_EQ(j["channel_roles"]["T4"], "ambient");
+
+  r = run(home, "record --port " + m.pty.path + " --out " + home.path + "/rec.csv --samples 8 --json");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(nlohmann::json::parse(r.out)["rows"], 8);
+  EXPECT_EQ(thermal::read_recording_csv(home.path + "/rec.csv").rows(), 8u);
+
+  r = run(home, "monitor --count 3 --json --port " + m.pty.path);
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::istringstream lines(r.out);
+  std::string line;
+  int n = 0;
+  while (std::getline(lines, line)) {
+    EXPECT_TRUE(nlohmann::json::parse(line).contains("channels"));
+    ++n;
+  }
+  EXPECT_EQ(n, 3);
+
+  EXPECT_EQ(run(home, "set-speed 4500 --port " + m.pty.path).code, 0);
+  EXPECT_EQ(m.module.speed(), 4500);
+  r = run(home, "set-config sample_period_ms 10 --port " + m.pty.path);
+  EXPECT_EQ(r.code, 2);  // refused before sending: outside [1000, 600000]
+  EXPECT_NE(r.err.find("sample_period_ms"), std::string::npos);
+  r = run(home, "set-config no_such_key 1 --port " + m.pty.path);
+  EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(run(home, "set-config channel_role_5 disabled --port " + m.pty.path).code, 0);
+  r = run(home, "info --port /dev/nonexistent-btsm");
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("/dev/nonexistent-btsm"), std::string::npos);
+}
+
+TEST(LinkCli, KeysAndFlashModel) {
+  test::TempDir home;
+  ModuleOnPty m;
+  const auto blob = test::make_test_blob(1);
+  std::ofstream(home.path + "/model.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
+  // No key yet: a clear error naming the command that creates one.
+  Result r = run(home, "flash-model --port " + m.pty.path + " " + home.path + "/model.bin");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("btsm keys"), std::string::npos) << r.err;
+  // The development key of the fake module.
+  std::string dev;
+  for (int i = 0; i < 32; ++i) dev += fmt::format("{:02x}", i);
+  ASSERT_EQ(run(home, "keys import 0000de70 " + dev).code, 0);
+  const std::string keyfile = home.path + "/.config/btsm/keys/0000de70.key";
+  struct stat st {};
+  ASSERT_EQ(::stat(keyfile.c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);
+  EXPECT_NE(run(home, "keys list").out.find("0000de70"), std::string::npos);
+  r = run(home, "flash-model --json --port " + m.pty.path + " " + home.path + "/model.bin");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_TRUE(nlohmann::json::parse(r.out)["verified"].get<bool>());
+  EXPECT_EQ(m.module.active_model(), blob);
+  // An exposed key is refused.
+  ::chmod(keyfile.c_str(), 0644);
+  r = run(home, "flash-model --port " + m.pty.path + " " + home.path + "/model.bin");
+  EXPECT_NE(r.code, 0);
+  EXPECT_NE(r.err.find("chmod 600"), std::string::npos) << r.err;
+}
+
+TEST(LinkCli, FlashFirmwareDryRunPatchesTheKey) {
+  test::TempDir home;
+  link::HexImage img;
+  for (uint32_t a = 0; a < 256; ++a) img.bytes[a] = static_cast<uint8_t>(a);
+  for (uint32_t a = 0; a < device_key::kRecordSize; ++a) img.bytes[device_key::kFlashAddress + a] = 0xFF;
+  std::ofstream(home.path + "/fw.hex") << link::format_intel_hex(img);
+  Result r = run(home, "flash-firmware --device-id 0000de71 --hex " + home.path + "/fw.hex --out " + home.path +
+                           "/p.hex --dry-run --port /dev/ttyACM9");
+  EXPECT_EQ(r.code, 2);  // no key and no --new-key
+  r = run(home, "flash-firmware --device-id 0000de71 --new-key --hex " + home.path + "/fw.hex --out " + home.path +
+                    "/p.hex --dry-run --port /dev/ttyACM9");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.out, "avrdude -p atmega328p -c arduino -b 115200 -P /dev/ttyACM9 -D -U flash:w:" + home.path +
+                       "/p.hex:i\n");
+  struct stat st {};
+  ASSERT_EQ(::stat((home.path + "/p.hex").c_str(), &st), 0);
+  EXPECT_EQ(st.st_mode & 0777, 0600u);  // it holds the key
+  const auto rec = link::read_device_key(link::read_intel_hex(home.path + "/p.hex"));
+  ASSERT_TRUE(rec);
+  EXPECT_EQ(rec->device_id, 0xDE71u);
+  EXPECT_EQ(run(home, "keys show 0000de71").out, link::key_to_hex(rec->key) + "\n");
+  r = run(home, "flash-firmware --device-id 0000de71 --dry-run --ble C8:A0:30:F1:02:03 --hex " + home.path + "/fw.hex --out " +
+                    home.path + "/q.hex");
+  EXPECT_EQ(r.code, 3);
+  EXPECT_NE(r.err.find("USB"), std::string::npos) << r.err;
+}

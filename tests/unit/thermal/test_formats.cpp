@@ -1,0 +1,122 @@
+// Input errors name what and where: recording CSV (file:line:column) and network JSON (field).
+#include "host/thermal/fit.hpp"
+#include "host/thermal/network.hpp"
+#include "host/thermal/recording.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <cstdio>
+#include <string>
+
+namespace btsm::thermal {
+namespace {
+
+std::string error_of(const std::string& csv) {
+  try {
+    parse_recording_csv(csv, "rec.csv");
+  } catch (const std::runtime_error& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(RecordingCsv, ParsesMetadataMissingValuesAndChannels) {
+  const Recording r = parse_recording_csv("# module: 42\n# fw: 1.0\ntime_s,speed_rpm,ambient_c,T1,T2\n0,6000,25,25.1,\n5,6000,25.5,25.2,26\n",
+                                          "x.csv");
+  ASSERT_EQ(r.rows(), 2u);
+  EXPECT_EQ(r.meta_value("module"), "42");
+  EXPECT_EQ(r.channel_index("T2"), 1);
+  EXPECT_TRUE(std::isnan(r.temp_c(0, 1)));
+  EXPECT_DOUBLE_EQ(r.temp_c(1, 1), 26.0);
+  EXPECT_DOUBLE_EQ(r.ambient_c[1], 25.5);
+}
+
+TEST(RecordingCsv, ErrorsNameFileLineAndColumn) {
+  EXPECT_EQ(error_of("time_s,speed_rpm,T1\n0,0,1\n").rfind("rec.csv:1:3:", 0), 0u) << error_of("time_s,speed_rpm,T1\n0,0,1\n");
+  const std::string bad = error_of("time_s,speed_rpm,ambient_c,T1,T2\n0,0,25,1,2\n5,0,25,1x,2\n");
+  EXPECT_NE(bad.find("rec.csv:3:4:"), std::string::npos) << bad;
+  EXPECT_NE(bad.find("'T1'"), std::string::npos) << bad;
+  const std::string nan = error_of("time_s,speed_rpm,ambient_c,T1\n0,0,25,nan\n");
+  EXPECT_NE(nan.find("rec.csv:2:4:"), std::string::npos) << nan;
+  const std::string missing = error_of("time_s,speed_rpm,ambient_c,T1,T2\n0,0,25,1\n");
+  EXPECT_NE(missing.find("rec.csv:2:"), std::string::npos) << missing;
+  EXPECT_NE(missing.find("T2"), std::string::npos) << missing;
+  const std::string time = error_of("time_s,speed_rpm,ambient_c,T1\n5,0,25,1\n5,0,25,1\n");
+  EXPECT_NE(time.find("rec.csv:3:1:"), std::string::npos) << time;
+  EXPECT_NE(error_of("").find("no header"), std::string::npos);
+}
+
+TEST(RecordingCsv, WriterRoundTrip) {
+  const std::string path = ::testing::TempDir() + "/btsm_rec_roundtrip.csv";
+  {
+    RecordingWriter w;
+    w.open(path, {"T1", "T2"});
+    w.write_meta("module", "7");
+    w.append(0, 6000, 25, {25.12345, std::nan("")});
+    w.append(5, 0, 25, {25.2, 26.0});
+    EXPECT_THROW(w.write_meta("late", "x"), std::logic_error);
+    EXPECT_THROW(w.append(10, 0, 25, {1.0}), std::invalid_argument);
+  }
+  const Recording r = read_recording_csv(path);
+  EXPECT_EQ(r.meta_value("module"), "7");
+  EXPECT_NEAR(r.temp_c(0, 0), 25.12345, 0.6e-4);
+  EXPECT_TRUE(std::isnan(r.temp_c(0, 1)));
+  std::remove(path.c_str());
+}
+
+std::string network_error(const nlohmann::json& j) {
+  try {
+    network_from_json(j, "net.json");
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+TEST(NetworkJson, PresetRoundTripsAndBadFieldsErrorClearly) {
+  const Network net = preset_network("spindle4");
+  EXPECT_EQ(net.node_count(), 4);
+  EXPECT_EQ(net.param_count(), 23);
+  const Network again = network_from_json(network_to_json(net), "roundtrip");
+  EXPECT_EQ(again.param_names(), net.param_names());
+
+  nlohmann::json j = network_to_json(net);
+  j["parameters"][0]["min"] = "small";
+  EXPECT_NE(network_error(j).find("parameter 'R12': field 'min' must be a number"), std::string::npos) << network_error(j);
+  j = network_to_json(net);
+  j["links"][0]["both"] = {{{"resistance", "R99"}}};
+  EXPECT_NE(network_error(j).find("unknown parameter 'R99'"), std::string::npos) << network_error(j);
+  j = network_to_json(net);
+  j["nodes"][0]["colour"] = "red";
+  EXPECT_NE(network_error(j).find("unknown field 'colour'"), std::string::npos) << network_error(j);
+  j = network_to_json(net);
+  j["links"][0]["between"] = {"rear_bearing", "nowhere"};
+  EXPECT_NE(network_error(j).find("unknown node 'nowhere'"), std::string::npos) << network_error(j);
+  j = network_to_json(net);
+  j["links"][5]["cooling"] = {{{"resistance", "Rc_a1"}, {"speed_exponent", -0.5}}};
+  EXPECT_NE(network_error(j).find("speed_exponent 0"), std::string::npos) << network_error(j);
+  EXPECT_THROW(preset_network("lathe9"), std::invalid_argument);
+}
+
+TEST(NetworkJson, FitRefusesToRunWithoutAScaleGauge) {
+  Network net = preset_network("spindle4");
+  net.sum_capacitance_J_per_K = std::nan("");
+  Recording rec = parse_recording_csv("time_s,speed_rpm,ambient_c,T1,T2,T3,T4\n0,0,25,26,26,26,26\n5,0,25,26,26,26,26\n", "r.csv");
+  try {
+    fit_network(net, {rec});
+    FAIL() << "expected a gauge error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("gauge"), std::string::npos);
+  }
+  Recording no_t4 = parse_recording_csv("time_s,speed_rpm,ambient_c,T1,T2,T3\n0,0,25,26,26,26\n5,0,25,26,26,26\n", "r3.csv");
+  try {
+    fit_network(preset_network("spindle4"), {no_t4});
+    FAIL() << "expected a missing column error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("r3.csv: no column 'T4'"), std::string::npos) << e.what();
+  }
+}
+
+}  // namespace
+}  // namespace btsm::thermal
