@@ -72,8 +72,8 @@ DemoSummary run_demo(const DemoOptions& opts) {
     so.plant.ambient = sim::AmbientProfile{20.0};
     sim::parse_effect(opts.effect, so.plant.effects);  // hidden from everything below
     for (const auto& run : plan.identification)
-      for (const auto& seg : run.segments) so.plant.speed.segments.push_back(seg);
-    so.plant.speed.segments.push_back({1e6, 0});  // idle until the production phase
+      for (const auto& seg : run.segments) so.plant.speed.append(seg);
+    so.plant.speed.append({1e6, 0});  // idle until the production phase
     uint8_t record[device_key::kRecordSize];
     device_key::build_record(record, device_id, key.data());
     so.key_record.assign(record, record + device_key::kRecordSize);

@@ -1,6 +1,7 @@
 #include "host/demo/production_watch.hpp"
 
 #include "common/wire_messages.hpp"
+#include "host/link/device_keys.hpp"
 #include "host/report/plot.hpp"
 
 #include <fmt/core.h>
