@@ -1,8 +1,8 @@
 // CRC-16/CCITT-FALSE (frame check) and CRC-32/IEEE (model blob check).
 //
-// Bitwise implementations on purpose: a 256-entry table costs 512 B (CRC-16) or 1 KB (CRC-32) of
-// the ATmega328P's 32 KB flash, and the data rates here (a 60-byte frame every few seconds, a
-// <= 464-byte blob on commit) make the bitwise loop's speed irrelevant.
+// No tables on purpose: a 256-entry table costs 512 B (CRC-16) or 1 KB (CRC-32) of the ATmega328P's
+// 32 KB flash. CRC-16 uses the table-free byte-wise form (every frame); CRC-32 stays bitwise (a
+// <= 464-byte blob on commit, where its speed is irrelevant).
 //
 // Both functions are chainable: pass the previous result as `crc` to continue over more data.
 //   CRC-16/CCITT-FALSE: poly 0x1021, init 0xFFFF, no reflection, no xorout; check("123456789")=0x29B1
@@ -16,13 +16,16 @@
 
 namespace btsm {
 
+// Byte-at-a-time form of the bitwise polynomial division (poly 0x1021 = x^16 + x^12 + x^5 + 1):
+// with x = high byte ^ b, folded once (x ^= x >> 4, which makes the 12-bit and 5-bit feedback
+// terms of the eight steps collapse into three shifts), the eight shift/xor steps become
+//   crc' = (crc << 8) ^ (x << 12) ^ (x << 5) ^ x.
+// Same result as the bit loop, no table, ~25 AVR cycles per byte instead of ~100 (the firmware
+// checks every frame it sends and receives).
 inline uint16_t crc16_ccitt_byte(uint16_t crc, uint8_t b) {
-  crc = static_cast<uint16_t>(crc ^ (static_cast<uint16_t>(b) << 8));
-  for (uint8_t i = 0; i < 8; ++i) {
-    crc = (crc & 0x8000U) ? static_cast<uint16_t>((crc << 1) ^ 0x1021U)
-                          : static_cast<uint16_t>(crc << 1);
-  }
-  return crc;
+  uint8_t x = static_cast<uint8_t>((crc >> 8) ^ b);
+  x = static_cast<uint8_t>(x ^ (x >> 4));
+  return static_cast<uint16_t>((crc << 8) ^ (static_cast<uint16_t>(x) << 12) ^ (static_cast<uint16_t>(x) << 5) ^ x);
 }
 
 inline uint16_t crc16_ccitt(const uint8_t* d, size_t n, uint16_t crc = 0xFFFF) {

@@ -87,6 +87,55 @@ inline bool write_frame(Sink& sink, uint8_t type, uint8_t seq, const uint8_t* pa
   return true;
 }
 
+// Resumable encoder for a sink that may refuse bytes (the MCU's UART ring, smaller than a frame):
+// the frame goes out over several calls without a frame buffer, without re-encoding the bytes
+// already sent and with the CRC computed once. The wire bytes are exactly write_frame's.
+//   FrameCursor c; start_frame(c, payload, len);   then, until it returns true:
+//   resume_frame(put, c, type, seq, payload, len)  (put(uint8_t) -> bool, false = byte refused)
+// type, seq and the payload must stay unchanged until the frame is complete.
+struct FrameCursor {
+  uint16_t crc;  // CRC-16 over version..payload
+  uint8_t pos;   // next item: 0 = opening flag, 1..n = raw byte pos - 1, n + 1 = closing flag
+  bool escaped;  // the ESC of raw byte pos - 1 is already out, its second byte is not
+};
+
+inline void start_frame(FrameCursor& c, uint8_t type, uint8_t seq, const uint8_t* payload, uint8_t len) {
+  const uint8_t header[kHeaderSize] = {kProtocolVersion, type, seq, len};
+  c.crc = crc16_ccitt(payload, len, crc16_ccitt(header, kHeaderSize));
+  c.pos = 0;
+  c.escaped = false;
+}
+
+// Returns true once the closing flag is out (len must be <= kMaxPayload).
+template <class Put>
+inline bool resume_frame(Put& put, FrameCursor& c, uint8_t type, uint8_t seq, const uint8_t* payload,
+                         uint8_t len) {
+  const uint8_t n = static_cast<uint8_t>(kHeaderSize + len + kCrcSize);
+  for (;;) {
+    uint8_t b = kFlag;
+    if (c.pos != 0 && c.pos <= n) {
+      const uint8_t i = static_cast<uint8_t>(c.pos - 1);
+      if (i >= kHeaderSize + len) {
+        b = static_cast<uint8_t>(i == kHeaderSize + len ? c.crc : c.crc >> 8);
+      } else if (i >= kHeaderSize) {
+        b = payload[i - kHeaderSize];
+      } else {
+        b = i == 0 ? kProtocolVersion : i == 1 ? type : i == 2 ? seq : len;
+      }
+      if (needs_escape(b)) {
+        if (!c.escaped) {
+          if (!put(kEsc)) return false;
+          c.escaped = true;
+        }
+        b = static_cast<uint8_t>(b ^ kEscXor);
+      }
+    }
+    if (!put(b)) return false;
+    c.escaped = false;
+    if (c.pos++ > n) return true;
+  }
+}
+
 // Builds the raw (unstuffed) frame with an explicit version into raw (>= kMaxRawFrame bytes).
 // Returns the raw size, or 0 if len > kMaxPayload.
 inline size_t build_raw_frame(uint8_t version, uint8_t type, uint8_t seq, const uint8_t* payload,

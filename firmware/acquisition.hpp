@@ -5,10 +5,12 @@
 // milliseconds it can sleep before it needs to run again (DOUT/RDY or a timer wakes it earlier).
 //
 // Per sweep and enabled channel:
-//   1. idle mode, channel configuration, this channel's calibration pair (restored from RAM:
-//      AIN4..AIN6 share one pair on the chip), single conversion at the configured FS, wait RDY
-//   2. same channel with the burnout currents on, single conversion at FS 1 (4 ms): an open input
-//      is driven to full scale (ERR) -- a healthy one moves by 100 nA x R (ignored)
+//   1. channel configuration -- for AIN4..AIN6, which share one calibration pair on the chip,
+//      also idle mode and this channel's pair (restored from RAM); AIN1..AIN3 keep their own --
+//      single conversion at the configured FS, wait RDY
+//   2. same channel (calibration pair left in place) with the burnout currents on, single
+//      conversion at FS 1 (4 ms): an open input is driven to full scale (ERR) -- a healthy one
+//      moves by 100 nA x R (ignored)
 // Before and after each sweep the mode/configuration/IO registers are read back; a mismatch means
 // the chip reset itself (supply glitch, ESD): it is counted and the chip re-initialised.
 #ifndef BTSM_FIRMWARE_ACQUISITION_HPP
@@ -52,6 +54,7 @@ class Acquisition {
   static constexpr uint32_t kBurnoutOpenCode = 0xFFF000;  // at/above: driven to full scale
   static constexpr float kShortBelowOhm = 500.0f;         // PT1000 at -125 degC is 509 ohm
   static constexpr uint16_t kRetryMs = 1000;              // chip missing: identify again after
+  static constexpr uint32_t kRailMarginCodes = 16;        // codes this close to a rail: saturated
 
   explicit Acquisition(Spi& spi) : adc_(spi) {
     counters_ = AcquisitionCounters();
@@ -179,24 +182,22 @@ class Acquisition {
           sweep_ready_ = true;
           return 0;
         }
-        state_ = kConvStart;
-        return 0;
+        return start_channel(now_ms);
       case kConvStart:
-        adc_.prepare_channel(channel_config(channel_, false), setup_.fs, &cal_[channel_]);
-        last_config_ = channel_config(channel_, false);
-        begin_wait(ad7794::kModeSingle, setup_.fs, now_ms, ad7794::settle_ms(setup_.fs));
-        state_ = kConvWait;
-        return wait_budget(now_ms);
+        return start_channel(now_ms);
       case kConvWait: {
         if (!adc_.ready()) return check_timeout(now_ms);
         uint8_t status = 0;
         uint32_t code = 0;
         adc_.finish_conversion(status, code, data_width());
-        entropy_ = (entropy_ << 3) ^ (entropy_ >> 29) ^ (code & 0xFF);
-        evaluate(channel_, status, code);
-        adc_.prepare_channel(channel_config(channel_, true), kBurnoutFs, &cal_[channel_]);
+        // Same channel with the burnout currents on: only the configuration changes (its
+        // calibration pair is still in the chip). Started before the reading is evaluated, so
+        // the conversion runs meanwhile.
+        adc_.write(ad7794::kRegConfig, channel_config(channel_, true), 2);
         begin_wait(ad7794::kModeSingle, kBurnoutFs, now_ms, ad7794::settle_ms(kBurnoutFs));
         state_ = kBurnWait;
+        entropy_ = (entropy_ << 3) ^ (entropy_ >> 29) ^ (code & 0xFF);
+        evaluate(channel_, status, code);
         return wait_budget(now_ms);
       }
       case kBurnWait: {
@@ -209,13 +210,12 @@ class Acquisition {
         if (!reference_missing && ((status & ad7794::kStatusErr) || code >= kBurnoutOpenCode)) {
           r.faults = static_cast<uint8_t>((r.faults & ~wire::kFaultShort) | wire::kFaultOpen);
         }
+        // Next channel in the same poll: its configuration write also switches the burnout
+        // currents off.
+        channel_ = first_enabled(channel_ + 1);
+        if (channel_ < kChannels) return start_channel(now_ms);
         // Burnout currents off again (and the register image the read-back expects).
         adc_.write(ad7794::kRegConfig, last_config_, 2);
-        channel_ = first_enabled(channel_ + 1);
-        if (channel_ < kChannels) {
-          state_ = kConvStart;
-          return 0;
-        }
         end_sweep();
         return 0;
       }
@@ -241,6 +241,22 @@ class Acquisition {
     for (uint8_t ch = 0; ch < kChannels; ++ch)
       if ((setup_.enabled_mask >> ch) & 1U) last = ch;
     return last;
+  }
+
+  // Measurement conversion of channel_: its configuration and, for AIN4..AIN6 (one shared pair
+  // on the chip), its calibration pair restored from RAM; AIN1..AIN3 keep their own pair from the
+  // calibration, so they need only the configuration (11 SPI bytes less each).
+  BTSM_NOINLINE uint32_t start_channel(uint32_t now_ms) {
+    const uint16_t config = channel_config(channel_, false);
+    if (channel_ >= ad7794::kFirstSharedCalChannel) {
+      adc_.prepare_channel(config, setup_.fs, &cal_[channel_]);
+    } else {
+      adc_.write(ad7794::kRegConfig, config, 2);
+    }
+    last_config_ = config;
+    begin_wait(ad7794::kModeSingle, setup_.fs, now_ms, ad7794::settle_ms(setup_.fs));
+    state_ = kConvWait;
+    return wait_budget(now_ms);
   }
 
   BTSM_NOINLINE void begin_wait(uint8_t mode, uint8_t fs, uint32_t now_ms, uint16_t expected_ms) {
@@ -290,24 +306,33 @@ class Acquisition {
       faults |= code == 0 ? wire::kFaultShort : wire::kFaultOpen;
     }
     if (chip_ == AdcChip::kAd7795) code <<= 8;
-    // The AD7794 applied its own offset/full-scale calibration: identity software calibration.
-    RatiometricConfig<float> cfg;
-    cfg.r_ref_ohm = setup_.r_ref_ohm;
-    cfg.gain = ad7794::gain_of_code(setup_.gain_code);
-    cfg.bipolar = false;
-    cfg.rail_margin_codes = 16;
-    const RatioResult<float> rr =
-        code_to_resistance<float>(code, (status & ad7794::kStatusErr) != 0, cfg, ChannelCalibration<float>());
-    r.r_ohm = rr.r_ohm;
+    // The AD7794 applied its own offset/full-scale calibration, the coding is unipolar: this is
+    // code_to_resistance() (common/ratiometric.hpp) with an identity software calibration, whose
+    // checks reduce to the configuration and the rails (a code between the rails cannot be negative
+    // or beyond the gain's range), written out so the per-reading cost is one conversion and two
+    // multiplications (raw_ratio() is exact, no division) instead of ~10 float operations.
+    // Same values and statuses (tests/unit/firmware/acquisition_test.cpp).
+    const uint32_t margin = kRailMarginCodes;
+    r.r_ohm = 0.0f;
+    RatioStatus rs = RatioStatus::kOk;
+    if (!(setup_.r_ref_ohm > 0.0f)) {
+      rs = RatioStatus::kBadConfig;
+    } else if (status & ad7794::kStatusErr) {
+      rs = RatioStatus::kAdcError;
+    } else if (code <= margin) {
+      rs = RatioStatus::kRailLow;
+    } else if (code >= kAdcFullScaleCode - margin) {
+      rs = RatioStatus::kRailHigh;
+    } else {
+      r.r_ohm = setup_.r_ref_ohm * raw_ratio<float>(code, ad7794::gain_of_code(setup_.gain_code), false);
+    }
     if (faults == 0) {
-      switch (rr.status) {
+      switch (rs) {
         case RatioStatus::kOk:
-          if (rr.r_ohm < kShortBelowOhm) faults |= wire::kFaultShort;
+          if (r.r_ohm < kShortBelowOhm) faults |= wire::kFaultShort;
           break;
-        case RatioStatus::kRailLow:
-        case RatioStatus::kNegative: faults |= wire::kFaultShort; break;
-        case RatioStatus::kRailHigh:
-        case RatioStatus::kBeyondGainRange: faults |= wire::kFaultOpen; break;
+        case RatioStatus::kRailLow: faults |= wire::kFaultShort; break;
+        case RatioStatus::kRailHigh: faults |= wire::kFaultOpen; break;
         default: faults |= wire::kFaultAdc; break;
       }
     }

@@ -114,9 +114,14 @@ class Ad7794 {
     return v;
   }
 
+  // width 1..3 (every AD7794 register is at most 24 bits), most significant byte first. The bytes are split with constant shifts (plain register moves):
+  // `value >> (8 * (i - 1))` is a variable 32-bit shift, a bit-by-bit loop of ~100 cycles per byte
+  // on AVR.
   BTSM_NOINLINE void write_selected(uint8_t reg, uint32_t value, uint8_t width) {
+    const uint8_t bytes[3] = {static_cast<uint8_t>(value), static_cast<uint8_t>(value >> 8),
+                              static_cast<uint8_t>(value >> 16)};
     spi_.transfer(ad7794::comm_write(reg));
-    for (uint8_t i = width; i > 0; --i) spi_.transfer(static_cast<uint8_t>(value >> (8 * (i - 1))));
+    for (uint8_t i = width; i > 0; --i) spi_.transfer(bytes[i - 1]);
   }
 
   Spi& spi_;

@@ -98,6 +98,8 @@ struct ad7794 {
     kAin1 = 0, kAin2 = 1, kAin3 = 2, kAin4 = 3, kAin5 = 4, kAin6 = 5,
     kTempSensor = 6, kAvddMonitor = 7, kAin1Shorted = 8,
   };
+  // AIN1..AIN3 each have their own offset/full-scale register pair; AIN4..AIN6 share one.
+  static constexpr uint8_t kFirstSharedCalChannel = kAin4;
   // Calibration register pair used by a channel: AIN1..AIN3 own one each, AIN4..AIN6 share pair 3.
   // Pair 4 is the internal one of the temperature sensor and AVDD monitor channels.
   static constexpr uint8_t kCalPairs = 5;

@@ -58,8 +58,9 @@ void run_sim(const SimArgs& a) {
     for (const auto& f : a.faults) o.plant.faults.push_back(sim::parse_fault(f));
     for (const auto& e : a.effects) sim::parse_effect(e, o.plant.effects);
     if (a.ch5 == "surface") o.plant.ch5 = sim::Ch5Mode::HousingSurface;
+    else if (a.ch5 == "shaft") o.plant.ch5 = sim::Ch5Mode::ShaftEnd;
     else if (a.ch5 == "disabled") o.plant.ch5 = sim::Ch5Mode::Disabled;
-    else throw std::invalid_argument("--ch5 '" + a.ch5 + "': expected surface or disabled");
+    else throw std::invalid_argument("--ch5 '" + a.ch5 + "': expected surface, shaft or disabled");
     o.plant.ch5_surface_fraction = a.ch5_fraction;
     if (a.start_steady_rpm >= 0.0) {
       o.plant.start_steady = true;
@@ -195,7 +196,7 @@ void register_sim_commands(CLI::App& app) {
   cmd->add_flag("--no-wait", a->no_wait, "free-running: drop output while no host listens instead of waiting");
   cmd->add_option("--seed", a->seed, "AD7794 noise seed")->capture_default_str();
   cmd->add_option("--noise", a->noise, "AD7794 noise scale (1 = datasheet model, 0 = noiseless)")->capture_default_str();
-  cmd->add_option("--ch5", a->ch5, "spare probe: surface (housing surface) or disabled (AIN5 open)")->capture_default_str();
+  cmd->add_option("--ch5", a->ch5, "spare probe: surface (housing surface), shaft (on the stationary shaft end, reads the shaft node) or disabled (AIN5 open)")->capture_default_str();
   cmd->add_option("--ch5-fraction", a->ch5_fraction, "share of the housing rise seen by the surface probe")
       ->capture_default_str();
   cmd->add_option("--start-steady", a->start_steady_rpm, "start in thermal steady state at this speed (rpm) instead of cold");

@@ -70,6 +70,7 @@ DemoSummary run_demo(const DemoOptions& opts) {
     so.truth_csv = (out / "recordings" / "plant_truth.csv").string();
     so.truth_period_s = 60.0;
     so.plant.ambient = sim::AmbientProfile{20.0};
+    so.plant.ch5 = sim::Ch5Mode::ShaftEnd;  // the fifth probe on the stationary shaft end
     sim::parse_effect(opts.effect, so.plant.effects);  // hidden from everything below
     for (const auto& run : plan.identification)
       for (const auto& seg : run.segments) so.plant.speed.append(seg);
@@ -106,7 +107,7 @@ DemoSummary run_demo(const DemoOptions& opts) {
       ro.progress = [&](const link::RecordProgress& p) {
         if (p.rows % 400 == 0)
           say(fmt::format("recording {} ({}/{}): {:.1f} of {:.1f} h simulated", run.name, i + 1,
-                          plan.identification.size(), p.elapsed_s / 3600, run.duration_s() / 3600));
+                          plan.identification.size(), p.module_time_s / 3600, run.duration_s() / 3600));
       };
       const link::RecordSummary rs = link::record(session, id, ro);
       if (rs.lost > 0) throw StepFailure(fmt::format("{}: {} samples lost on the link", run.name, rs.lost));

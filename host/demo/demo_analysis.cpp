@@ -24,13 +24,61 @@ namespace fs = std::filesystem;
 namespace btsm::demo {
 namespace {
 
-// The module measures the rear bearing, housing and front bearing (T1..T3); the shaft node of
-// the paper's network has no probe while the spindle turns, and the module's fifth probe sits on
-// the housing surface, which is not a node of the network. So the demo fits spindle4 with T1..T3.
+// The module measures the rear bearing, housing and front bearing on ch1..ch3 (recorded as T1..T3),
+// ambient on ch4 (ambient_c) and the shaft through the probe on the stationary shaft end on ch5
+// (recorded as T5). Without that fifth probe the shaft node is not observable enough to identify
+// the paper's network (the fit then leaves it to the output error alone and crawls).
 thermal::Network demo_network() {
   thermal::Network net = thermal::preset_network("spindle4");
-  std::erase_if(net.measurements, [](const thermal::Measurement& m) { return m.column == "T4"; });
+  for (auto& m : net.measurements)
+    if (m.column == "T4") m.column = "T5";
   return net;
+}
+
+// Residual bands from the firmware model's own error on the identification recordings. A
+// first-order model cannot follow every fast transient of the spindle (the bearings cool quickly
+// into the housing after a stop, for instance), so fixed bands would raise false alarms on normal
+// running. The module's model (fixed point, exactly as it runs, started from the first measured row
+// like after a boot) is replayed over every recording; per channel the ALARM band is the worst
+// normal residual x `margin` (at least `floor_K`), WARN half of it. Returned per channel, K.
+struct BandCalibration {
+  double worst_K[kModelChannels] = {};
+  double warn_K[kModelChannels] = {};
+  double alarm_K[kModelChannels] = {};
+};
+
+BandCalibration calibrate_bands(ReducedModel& q, const std::vector<const thermal::Recording*>& recs,
+                                const char* const columns[kModelChannels], double margin, double floor_K) {
+  BandCalibration cal;
+  for (const thermal::Recording* rec : recs) {
+    int col[kModelChannels];
+    for (int j = 0; j < kModelChannels; ++j) col[j] = columns[j] ? rec->channel_index(columns[j]) : -1;
+    ReducedModelState st{};
+    reset(st);
+    for (size_t i = 0; i < rec->rows(); ++i) {
+      const auto rpm = static_cast<uint16_t>(std::clamp(std::lround(rec->speed_rpm[i]), 0L, 65535L));
+      const auto amb = static_cast<int32_t>(std::lround(rec->ambient_c[i] * 1000));
+      int32_t meas[kModelChannels];
+      for (int j = 0; j < kModelChannels; ++j) {
+        const double v = col[j] >= 0 ? rec->temp_c(static_cast<Eigen::Index>(i), col[j]) : NAN;
+        meas[j] = std::isfinite(v) ? static_cast<int32_t>(std::lround(v * 1000)) : kModelNoPrediction;
+      }
+      if (i == 0) init_from_measurement(q, st, rpm, amb, meas);
+      int32_t pred[kModelChannels];
+      step(q, st, rpm, amb, pred);
+      for (int j = 0; j < kModelChannels; ++j)
+        if (meas[j] != kModelNoPrediction && pred[j] != kModelNoPrediction && j != q.ambient_channel)
+          cal.worst_K[j] = std::max(cal.worst_K[j], std::abs(meas[j] - pred[j]) / 1000.0);
+    }
+  }
+  for (int j = 0; j < kModelChannels; ++j) {
+    if (((q.enabled_mask >> j) & 1U) == 0 || j == q.ambient_channel) continue;
+    cal.alarm_K[j] = std::min(60.0, std::max(floor_K, margin * cal.worst_K[j]));
+    cal.warn_K[j] = 0.5 * cal.alarm_K[j];
+    q.limits[j].alarm_band_mK = static_cast<uint16_t>(std::lround(cal.alarm_K[j] * 1000));
+    q.limits[j].warn_band_mK = static_cast<uint16_t>(std::lround(cal.warn_K[j] * 1000));
+  }
+  return cal;
 }
 
 std::string fmt_g(double v, int digits = 4) { return fmt::format("{:.{}g}", v, digits); }
@@ -71,8 +119,9 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   const thermal::Network net = demo_network();
   thermal::FitOptions fo;
   fo.sum_capacitance_J_per_K = 20478.7;  // the spindle's mass x c_p: the scale gauge
+  fo.max_iterations = 400;
   fo.progress = [&](const std::string& s) { progress("fit: " + s); };
-  progress(fmt::format("fitting spindle4 (T1..T3 measured) to {} recordings", fit_recs.size()));
+  progress(fmt::format("fitting spindle4 (T1..T3 and the shaft on T5 measured) to {} recordings", fit_recs.size()));
   const thermal::FitResult fit = thermal::fit_network(net, fit_recs, fo);
   out.model_json = (dir / "models" / "full_model.json").string();
   thermal::save_json(out.model_json, thermal::model_to_json(net, fit, fit_recs));
@@ -84,7 +133,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   }
   page.heading("2. Full thermal network fitted (Lo, Hu & Chang 2018, heat balances A2)");
   page.paragraph(fmt::format("Gauge: {}. Residual rms {:.4f} K over {} values in {:.2f} s; {} of {} parameters are weakly "
-                             "or not identifiable from these recordings (the shaft node has no probe) and are reported so.",
+                             "or not identifiable from these recordings and are reported so.",
                              fit.gauge, fit.rms_K, fit.residual_count, fit.seconds, weak, fit.estimates.size()));
   page.table({"parameter", "unit", "value", "1σ", "identifiability"}, prow);
 
@@ -110,7 +159,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   // --- The residual loop ---------------------------------------------------------------------------
   progress("residual loop: testing residuals, tracing unexplained heat, trying the effect library");
   residual::LoopOptions lo;
-  lo.fit_base = false;  // the base model is the one just fitted
+  lo.fit_base = true;  // candidates refit the base jointly (it has absorbed part of the effect); it starts from the fit above
   lo.progress = [&](const std::string& s) { progress("residual: " + s); };
   const residual::LoopResult loop = residual::run_residual_loop(net, fit.params, fit_recs, check_recs, lo);
   fs::create_directories(dir / "residual");
@@ -141,20 +190,45 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   thermal::ReduceOptions ro;
   ro.speeds_rpm = in.reduce_speeds_rpm;
   ro.dt_s = in.sample_period_s;
+  ro.channel_node = {{0, 1, 2, -1, 3}};  // ch5 = the probe on the shaft end
   progress("reducing to the speed-scheduled first-order model");
   const thermal::ScheduledReduction red = thermal::build_scheduled_model(final_net, final_params, ro);
   if (red.blob.empty()) {
     out.failures.push_back("the reduced model could not be quantized into the firmware blob");
     return out;
   }
-  out.blob = red.blob;
+  // Residual bands from the model's own error on everything recorded (fit and check runs).
+  ReducedModel q = red.quantized;
+  std::vector<const thermal::Recording*> all_recs;
+  for (const auto& r : fit_recs) all_recs.push_back(&r);
+  for (const auto& r : check_recs) all_recs.push_back(&r);
+  const char* const channel_columns[kModelChannels] = {"T1", "T2", "T3", nullptr, "T5"};
+  const BandCalibration bands = calibrate_bands(q, all_recs, channel_columns, in.band_margin, in.band_floor_K);
+  out.blob.assign(kReducedModelBlobSize, 0);
+  encode(q, out.blob.data());
+  ReducedModel check{};
+  if (!decode(out.blob.data(), out.blob.size(), check).ok()) {
+    out.failures.push_back("the reduced model with calibrated bands does not pass its own validation");
+    return out;
+  }
+  for (int j = 0; j < kModelChannels; ++j) out.alarm_band_K[j] = bands.alarm_K[j];
   out.quantized_vs_full_max_K = red.deviation.quantized_vs_full_max_K;
   out.reduced_json = (dir / "models" / "reduced_model.json").string();
   nlohmann::json rj = thermal::reduction_to_json(final_net, red, ro);
+  {
+    nlohmann::json cb = nlohmann::json::array();
+    for (int j = 0; j < kModelChannels; ++j)
+      cb.push_back({{"channel", j + 1}, {"worst_normal_residual_K", bands.worst_K[j]}, {"warn_band_K", bands.warn_K[j]},
+                    {"alarm_band_K", bands.alarm_K[j]}});
+    rj["diagnosis_calibrated"] = cb;
+    std::string hex;
+    for (uint8_t b : out.blob) hex += fmt::format("{:02x}", b);
+    rj["blob_hex"] = hex;  // what `btsm flash-model` sends (bands above included)
+  }
   thermal::save_json(out.reduced_json, rj);
   {
     std::ofstream b(dir / "models" / "reduced_model.bin", std::ios::binary);
-    b.write(reinterpret_cast<const char*>(red.blob.data()), static_cast<std::streamsize>(red.blob.size()));
+    b.write(reinterpret_cast<const char*>(out.blob.data()), static_cast<std::streamsize>(out.blob.size()));
   }
   std::vector<std::vector<std::string>> rrow;
   report::Plot hsv{"Hankel singular values per speed", "state index", "K/W", {}, true};
@@ -173,7 +247,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
     const double amb = 20.0;
     full.reset(Eigen::VectorXd::Constant(final_net.node_count(), amb));
     ReducedModel q{};
-    decode(red.blob.data(), red.blob.size(), q);
+    decode(out.blob.data(), out.blob.size(), q);
     ReducedModelState st{};
     reset(st);
     const double dt = in.sample_period_s;
@@ -203,6 +277,18 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
                              final_net.name, red.deviation.quantized_vs_full_max_K,
                              red.deviation.quantized_vs_double_max_K, red.deviation.profile));
   page.table({"speed (rpm)", "largest HSV (K/W)", "slowest full pole (1/s)", "BT pole (1/s)", "DC-matched pole (1/s)"}, rrow);
+  {
+    std::vector<std::vector<std::string>> brow;
+    const char* names[kModelChannels] = {"T1 rear bearing", "T2 housing", "T3 front bearing", "T4 ambient", "T5 shaft end"};
+    for (int j = 0; j < kModelChannels; ++j)
+      if (bands.alarm_K[j] > 0)
+        brow.push_back({names[j], fmt::format("{:.2f}", bands.worst_K[j]), fmt::format("{:.2f}", bands.warn_K[j]),
+                        fmt::format("{:.2f}", bands.alarm_K[j])});
+    page.paragraph(fmt::format("Residual bands: the firmware model replayed over every recording (started from the first "
+                               "measured row, as after a boot); ALARM = {:.1f} x its worst normal residual (at least "
+                               "{:.1f} K), WARN = half of that.", in.band_margin, in.band_floor_K));
+    page.table({"channel", "worst normal residual (K)", "WARN band (K)", "ALARM band (K)"}, brow);
+  }
   page.image("hankel_singular_values.png", "Hankel singular values: one dominant state at every speed");
   page.image("reduced_vs_full.png", "The module's fixed-point first-order model against the full network");
   return out;

@@ -18,6 +18,8 @@ struct AnalysisInputs {
   std::string out_dir;                  // report folder
   std::vector<double> reduce_speeds_rpm;
   double sample_period_s = 5.0;         // the module's sample period (the reduced model's dt)
+  double band_margin = 1.5;             // ALARM band = margin x worst residual on the recordings
+  double band_floor_K = 1.0;            // ALARM band never below this, K
   std::function<void(const std::string&)> progress;
 };
 
@@ -29,6 +31,7 @@ struct AnalysisOutputs {
   std::vector<std::string> effect_nodes;
   double check_rmse_before_K = 0, check_rmse_after_K = 0;
   double quantized_vs_full_max_K = 0;   // measured deviation of the flashed model
+  double alarm_band_K[5] = {};          // per channel, calibrated on the recordings (0 = not diagnosed)
   std::vector<std::string> failures;    // checks that did not hold
 };
 

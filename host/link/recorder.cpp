@@ -186,6 +186,7 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
       p.lost = session.tracker().lost();
       p.restarts = sum.restarts;
       p.elapsed_s = std::chrono::duration<double>(now - t0).count();
+      p.module_time_s = time_s;
       p.last = &s;
       opts.progress(p);
     }

@@ -41,7 +41,8 @@ std::string firmware_version(const wire::Info& info);
 
 struct RecordProgress {
   uint64_t rows = 0, lost = 0, restarts = 0;
-  double elapsed_s = 0;
+  double elapsed_s = 0;        // host wall-clock time since the recording started, s
+  double module_time_s = 0;    // recording time on the module's clock (the CSV's time_s), s
   const wire::Sample* last = nullptr;
 };
 

@@ -659,6 +659,82 @@ std::string fmt_double(double v, int prec = 6) {
   return os.str();
 }
 
+// For the equation-error start only: a node no probe measures gets, row by row, the mean of its
+// measured neighbours (links to ambient do not count). In natural cooling the nodes of a spindle
+// converge on one another, so this is a fair first guess; nothing after stage 1 uses it. Returns
+// whether any column was filled.
+bool fill_unmeasured_from_neighbours(const Network& net, Eigen::MatrixXd& temps) {
+  bool filled = false;
+  const Eigen::Index n = temps.cols();
+  std::vector<bool> measured(static_cast<std::size_t>(n));
+  for (Eigen::Index k = 0; k < n; ++k) measured[static_cast<std::size_t>(k)] = temps.col(k).array().isFinite().any();
+  for (Eigen::Index k = 0; k < n; ++k) {
+    if (measured[static_cast<std::size_t>(k)]) continue;
+    std::vector<int> nb;
+    for (const auto& l : net.links) {
+      const int other = l.a == k ? l.b : (l.b == k ? l.a : kAmbient);
+      if (other != kAmbient && measured[static_cast<std::size_t>(other)] &&
+          std::find(nb.begin(), nb.end(), other) == nb.end())
+        nb.push_back(other);
+    }
+    if (nb.empty()) continue;
+    for (Eigen::Index i = 0; i < temps.rows(); ++i) {
+      double sum = 0;
+      int cnt = 0;
+      for (int o : nb)
+        if (std::isfinite(temps(i, o))) {
+          sum += temps(i, o);
+          ++cnt;
+        }
+      temps(i, k) = cnt == static_cast<int>(nb.size()) ? sum / cnt : std::numeric_limits<double>::quiet_NaN();
+    }
+    filled = true;
+  }
+  return filled;
+}
+
+// A parameter whose equation-error row needs an unmeasured node (the shaft of a spindle whose
+// probes all sit on the housing, say) cannot be started from the data directly. It starts at the
+// geometric mean of the started parameters of the same unit (a capacitance: an equal share of what
+// the capacitance gauge leaves), and the output-error stages that follow fit it like any other. The
+// fit says so in its warnings, because such a parameter's estimate rests on the output error alone.
+void start_unreached_from_peers(const Network& net, const std::vector<int>& wanted, const std::vector<int>& got,
+                                double sum_c, Eigen::VectorXd& p, std::vector<std::string>& warnings) {
+  const auto unit_of = [&](int j) -> const std::string& { return net.params[static_cast<std::size_t>(j)].unit; };
+  const int np = static_cast<int>(net.params.size());
+  for (int i : wanted) {
+    if (std::find(got.begin(), got.end(), i) != got.end()) continue;
+    const auto& par = net.params[static_cast<std::size_t>(i)];
+    double start = std::numeric_limits<double>::quiet_NaN();
+    if (par.unit == "J/K" && std::isfinite(sum_c)) {
+      double known = 0;
+      int unknown = 0;
+      for (int j = 0; j < np; ++j)
+        if (unit_of(j) == "J/K") {
+          if (std::isfinite(p[j])) known += p[j];
+          else ++unknown;
+        }
+      if (unknown > 0 && sum_c > known) start = (sum_c - known) / unknown;
+    } else {
+      double log_sum = 0;
+      int n = 0;
+      for (int j = 0; j < np; ++j)
+        if (j != i && unit_of(j) == par.unit && std::isfinite(p[j]) && p[j] > 0) {
+          log_sum += std::log(p[j]);
+          ++n;
+        }
+      if (n > 0) start = std::exp(log_sum / n);
+    }
+    if (!std::isfinite(start))
+      throw std::invalid_argument("fit: could not start '" + par.name +
+                                  "' from the cooling data (its nodes are not measured there) and no started parameter "
+                                  "shares its unit; give an initial value");
+    p[i] = std::clamp(start, par.min, par.max);
+    warnings.push_back("'" + par.name + "' could not be started from the data (its nodes are not measured): started at " +
+                       fmt_double(p[i]) + " " + par.unit + " from its peers; its estimate rests on the output-error fit alone");
+  }
+}
+
 }  // namespace
 
 const char* identifiability_name(Identifiability i) {
@@ -835,6 +911,7 @@ FitResult fit_network(const Network& net_in, const std::vector<Recording>& recs,
     // ---- stage 1: cooling segments, equation error
     std::vector<Run> cooling_runs;
     std::vector<EquationErrorInput> cool_data;
+    bool warned_fill = false;
     for (std::size_t r = 0; r < recs.size(); ++r) {
       const Recording& rec = recs[r];
       std::size_t b = 0;
@@ -857,6 +934,11 @@ FitResult fit_network(const Network& net_in, const std::vector<Recording>& recs,
       in.rec = &rec;
       in.temps = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(rec.rows()), n, kNaN);
       for (std::size_t m = 0; m < cols[r].size(); ++m) in.temps.col(net.measurements[m].node) = rec.temp_c.col(cols[r][m]);
+      if (fill_unmeasured_from_neighbours(net, in.temps) && !warned_fill) {
+        res.warnings.push_back("stage 1 started with unmeasured node temperatures taken as the mean of their measured "
+                               "neighbours; the output-error stages replace that with the network's own prediction");
+        warned_fill = true;
+      }
       in.extra = extra_of(r);
       cool_data.push_back(std::move(in));
     }
@@ -874,10 +956,7 @@ FitResult fit_network(const Network& net_in, const std::vector<Recording>& recs,
       say("stage 1: equation-error start of " + std::to_string(cool_auto.size()) + " cooling-mode parameters from " +
           std::to_string(cooling_runs.size()) + " cooling segments");
       const auto got = equation_error_start(net, cool_data, Mode::Cooling, cool_auto, use_sum_c ? sum_c : kNaN, p, res.warnings);
-      for (int i : cool_auto)
-        if (std::find(got.begin(), got.end(), i) == got.end())
-          throw std::invalid_argument("fit: could not start '" + net.params[static_cast<std::size_t>(i)].name +
-                                      "' from the cooling data (its nodes are not measured there); give an initial value");
+      start_unreached_from_peers(net, cool_auto, got, use_sum_c ? sum_c : kNaN, p, res.warnings);
     }
     // ---- stage 2: output error on cooling segments
     if (!cooling_runs.empty() && !free_cool.empty()) {
@@ -910,12 +989,16 @@ FitResult fit_network(const Network& net_in, const std::vector<Recording>& recs,
       }
       say("stage 3: equation-error start of " + std::to_string(op_auto.size()) + " operating-only parameters");
       const auto got = equation_error_start(net, op_data, Mode::Operating, op_auto, kNaN, p, res.warnings);
+      std::vector<int> log_missing;
       for (int i : op_auto)
         if (std::find(got.begin(), got.end(), i) == got.end()) {
           const auto& par = net.params[static_cast<std::size_t>(i)];
           if (!par.log_scale) p[i] = std::max(par.min, 0.0);
-          else throw std::invalid_argument("fit: could not start '" + par.name + "' from the operating data; give an initial value");
+          else log_missing.push_back(i);
         }
+      // A resistance the regression could not place (collinear with a source, or estimated with
+      // the wrong sign) starts from its peers, like an unmeasured node's in stage 1.
+      start_unreached_from_peers(net, log_missing, {}, kNaN, p, res.warnings);
     }
     if (!free_op_only.empty()) {
       LmProblem pr = make_problem(whole, free_op_only, x0_whole);

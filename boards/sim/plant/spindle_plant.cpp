@@ -27,11 +27,14 @@ SpindlePlant::SpindlePlant(PlantOptions opts) : opts_(std::move(opts)) {
                                   net.params[i].name + " has no value");
   if (net.node_count() < 3) throw std::invalid_argument("plant: network needs at least 3 nodes");
   // Channel j (1..3) is the node measured as "Tj" when the network says so, else node j-1.
-  for (int j = 0; j < 3; ++j) {
-    node_[j] = j;
+  // The shaft (for a ch5 on the shaft end) likewise: "T4", else node 3.
+  for (int j = 0; j < 4; ++j) {
+    node_[j] = j < net.node_count() ? j : -1;
     for (const auto& m : net.measurements)
       if (m.column == "T" + std::to_string(j + 1)) node_[j] = m.node;
   }
+  if (opts_.ch5 == Ch5Mode::ShaftEnd && node_[3] < 0)
+    throw std::invalid_argument("plant: ch5 on the shaft end needs a fourth (shaft) node in the network");
   sim_ = std::make_unique<thermal::Simulator>(net, params_);
   const double amb0 = opts_.ambient.celsius_at(0.0);
   Eigen::VectorXd x0 = Eigen::VectorXd::Constant(net.node_count(), amb0);
@@ -90,7 +93,9 @@ double SpindlePlant::probe_temp_c(int ch) const {
     case 2: return x[node_[1]];
     case 3: return x[node_[2]];
     case 4: return ambient_c();
-    case 5: return ambient_c() + opts_.ch5_surface_fraction * (x[node_[1]] - ambient_c());
+    case 5:
+      if (opts_.ch5 == Ch5Mode::ShaftEnd) return x[node_[3]];
+      return ambient_c() + opts_.ch5_surface_fraction * (x[node_[1]] - ambient_c());
     default: throw std::out_of_range("plant: channel must be 1..5");
   }
 }

@@ -12,6 +12,11 @@
 //                       (housing - ambient). The surface runs cooler than the housing midpoint, and
 //                       a probe there is what a technician would add as a fifth sensor. The
 //                       fraction is a plant parameter, not part of the paper's model.
+//                       Ch5Mode::ShaftEnd puts it on the shaft instead: a spring-loaded probe on
+//                       the stationary rear end of the shaft assembly (rotary-union housing),
+//                       idealised as reading the shaft node ("T4" of the network). That is the
+//                       placement the closed-loop demo uses, because without it the shaft node is
+//                       not observable enough to identify the paper's network.
 //                       Ch5Mode::Disabled instead leaves AIN5 open (the firmware must then report
 //                       SENSOR_FAULT on ch5, or have the channel disabled in its configuration).
 //
@@ -32,7 +37,7 @@ namespace btsm::sim {
 
 constexpr int kChannels = 5;
 
-enum class Ch5Mode { HousingSurface, Disabled };
+enum class Ch5Mode { HousingSurface, ShaftEnd, Disabled };
 
 struct PlantOptions {
   std::string network = "spindle4";   // preset name, or path of a network JSON file
@@ -87,7 +92,7 @@ class SpindlePlant {
   std::unique_ptr<thermal::Simulator> sim_;
   Eigen::VectorXd params_;
   Eigen::VectorXd extra_w_;
-  int node_[3] = {0, 1, 2};
+  int node_[4] = {0, 1, 2, 3};  // rear bearing, housing, front bearing, shaft
   double t_s_ = 0.0;
   double last_rpm_ = 0.0;
   double runin_w_ = 0.0;   // W at each bearing, decaying
