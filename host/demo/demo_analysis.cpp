@@ -177,8 +177,9 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   page.heading("3b. Residual loop: what the paper's model lacks");
   page.paragraph(loop.explanation);
   page.preformatted(residual::format_table(loop));
-  for (const char* png : {"residual/measured_vs_models.png", "residual/residuals_before_after.png", "residual/unexplained_heat.png"})
-    if (fs::exists(dir / png)) page.image(png, fs::path(png).stem().string());
+  page.image("residual/residual_model.png", "Check recordings: measured vs the base model and the model with the effect");
+  page.image("residual/residual_residuals.png", "Residuals before and after adding the effect");
+  page.image("residual/residual_heat_trace.png", "Unexplained heat flow per node, estimated inversely from the base model's residual");
 
   // --- Reduce the (augmented) model to the firmware's first-order model ----------------------------
   thermal::Network final_net = net;
