@@ -19,13 +19,24 @@ namespace btsm {
 // Byte-at-a-time form of the bitwise polynomial division (poly 0x1021 = x^16 + x^12 + x^5 + 1):
 // with x = high byte ^ b, folded once (x ^= x >> 4, which makes the 12-bit and 5-bit feedback
 // terms of the eight steps collapse into three shifts), the eight shift/xor steps become
-//   crc' = (crc << 8) ^ (x << 12) ^ (x << 5) ^ x.
-// Same result as the bit loop, no table, ~25 AVR cycles per byte instead of ~100 (the firmware
-// checks every frame it sends and receives).
-inline uint16_t crc16_ccitt_byte(uint16_t crc, uint8_t b) {
+//   crc' = (crc << 8) ^ (x << 12) ^ (x << 5) ^ x,
+// written here per byte so an 8-bit MCU needs no 16-bit shift loops:
+//   high' = low ^ (x << 4) ^ (x >> 3),  low' = (x << 5) ^ x.
+// Same result as the bit loop (checked exhaustively), no table, ~15 AVR cycles per byte instead
+// of ~100 (the firmware checks every frame it sends and receives).
+#if defined(__GNUC__)
+#define BTSM_CRC_INLINE inline __attribute__((always_inline))
+#else
+#define BTSM_CRC_INLINE inline
+#endif
+// Forced inline: a dozen instructions, called once per byte from two loops (crc16_ccitt and the
+// frame encoder); as a call on AVR the argument shuffling costs as much as the work.
+BTSM_CRC_INLINE uint16_t crc16_ccitt_byte(uint16_t crc, uint8_t b) {
   uint8_t x = static_cast<uint8_t>((crc >> 8) ^ b);
   x = static_cast<uint8_t>(x ^ (x >> 4));
-  return static_cast<uint16_t>((crc << 8) ^ (static_cast<uint16_t>(x) << 12) ^ (static_cast<uint16_t>(x) << 5) ^ x);
+  const uint8_t hi = static_cast<uint8_t>(static_cast<uint8_t>(crc) ^ static_cast<uint8_t>(x << 4) ^ (x >> 3));
+  const uint8_t lo = static_cast<uint8_t>(static_cast<uint8_t>(x << 5) ^ x);
+  return static_cast<uint16_t>((static_cast<uint16_t>(hi) << 8) | lo);
 }
 
 inline uint16_t crc16_ccitt(const uint8_t* d, size_t n, uint16_t crc = 0xFFFF) {

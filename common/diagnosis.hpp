@@ -139,7 +139,9 @@ class DiagChannel {
       warn_run_ = 0;
       return state_;
     }
-    const Conditions c = evaluate(in, lim, t);
+    // The exit thresholds (three 32-bit divisions, ~600 cycles each on AVR) only matter when
+    // leaving WARN, ALARM or SENSOR_FAULT; NORMAL, the usual state, skips them.
+    const Conditions c = evaluate(in, lim, t, state_ != DiagState::kNormal);
     reasons_ = c.reasons;
     switch (state_) {
       case DiagState::kSensorFault:
@@ -224,7 +226,9 @@ class DiagChannel {
     return static_cast<int32_t>((static_cast<int32_t>(entry) * keep) / 1000);
   }
 
-  static Conditions evaluate(const DiagInput& in, const DiagChannelLimits& lim, const DiagTiming& t) {
+  // alarm_clear and normal are only computed with need_exit (false otherwise).
+  static Conditions evaluate(const DiagInput& in, const DiagChannelLimits& lim, const DiagTiming& t,
+                             bool need_exit) {
     Conditions c;
     c.reasons = 0;
     int32_t abs_res = 0;
@@ -246,6 +250,9 @@ class DiagChannel {
     if (rise_alarm) c.reasons |= kReasonRise;
     c.alarm = res_alarm || abs_alarm || rise_alarm;
     c.warn = res_warn || c.alarm;
+    c.alarm_clear = false;
+    c.normal = false;
+    if (!need_exit) return c;
     const int32_t h = t.hysteresis_permille;
     c.alarm_clear = (!have_res || abs_res <= exit_threshold(lim.alarm_band_mK, static_cast<uint16_t>(h))) &&
                     in.measured_mK <= lim.abs_limit_mK - static_cast<int32_t>(t.abs_hysteresis_mK) &&
@@ -316,21 +323,44 @@ class RiseRate {
 
   // Returns the current rate in mK/min (or kDiagNoValue).
   int32_t push(int32_t t_mK) {
-    buf_[head_] = t_mK;
-    head_ = static_cast<uint8_t>((head_ + 1) % kWindow);
-    if (count_ < kWindow) ++count_;
-    if (count_ < kWindow || dt_ms_ == 0) return kDiagNoValue;
-    const int32_t oldest = buf_[head_];  // next slot to be overwritten = oldest sample
+    int32_t oldest;
+    if (!store(t_mK, oldest)) return kDiagNoValue;
     // Float, not int64: avoids pulling 64-bit division into the AVR image; 24-bit mantissa is
     // plenty for a rate compared against thresholds in mK/min.
     const float span_min = static_cast<float>(dt_ms_) * static_cast<float>(kWindow - 1) / 60000.0f;
-    float rate = static_cast<float>(t_mK - oldest) / span_min;
+    return round_rate(static_cast<float>(t_mK - oldest) / span_min);
+  }
+
+  // Same, with the factor per_min = 1 / window span in minutes (per_min_factor(dt_ms())) supplied
+  // by the caller: channels with one sample period share one division per sample instead of one
+  // each (the rate may differ from push() in the last float bit, i.e. by 1 mK/min after rounding
+  // in rare cases).
+  int32_t push_scaled(int32_t t_mK, float per_min) {
+    int32_t oldest;
+    if (!store(t_mK, oldest)) return kDiagNoValue;
+    return round_rate(static_cast<float>(t_mK - oldest) * per_min);
+  }
+  static float per_min_factor(uint16_t dt_ms) {
+    return 60000.0f / (static_cast<float>(dt_ms) * static_cast<float>(kWindow - 1));
+  }
+  uint16_t dt_ms() const { return dt_ms_; }
+
+ private:
+  // Stores the sample; false while the window is not full (or dt is 0), else the oldest sample.
+  bool store(int32_t t_mK, int32_t& oldest) {
+    buf_[head_] = t_mK;
+    head_ = static_cast<uint8_t>((head_ + 1) % kWindow);
+    if (count_ < kWindow) ++count_;
+    if (count_ < kWindow || dt_ms_ == 0) return false;
+    oldest = buf_[head_];  // next slot to be overwritten = oldest sample
+    return true;
+  }
+  static int32_t round_rate(float rate) {
     if (rate > 8388607.0f) rate = 8388607.0f;
     if (rate < -8388607.0f) rate = -8388607.0f;
     return static_cast<int32_t>(rate < 0.0f ? rate - 0.5f : rate + 0.5f);
   }
 
- private:
   int32_t buf_[kWindow] = {};
   uint16_t dt_ms_;
   uint8_t count_ = 0;

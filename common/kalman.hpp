@@ -18,12 +18,14 @@
 // precomputed K and S = M + R every sample: no division per sample, and identical behaviour to the
 // full filter once it has settled (a few 1/K samples).
 //
-// Settle option (MCU): the full filter runs until its gain has converged to the steady-state gain
-// (relative difference <= 2^-16), then the filter switches to the steady-state update above; a
-// rejection, predict_only(), reset() or a re-initialisation moves the variance off the fixed point
-// and hands back to the full recursion. Same estimates as the full filter (the switch happens where
-// the two gains agree to 2^-16, an estimate difference far below one float ulp), but on the MCU the
-// settled update costs no division (~500 of ~1900 cycles per channel and sample).
+// Gain memo (MCU): the gain, the posterior variance and the gate threshold depend only on the
+// parameters and on P, not on the measurement. Filters with the same parameters whose P is the same
+// (every channel of a module initialised at the same sample and without a rejection since, which
+// is the usual case, settled or not) can share them: update(z, &memo) computes them for the first
+// filter and reuses them for the others when their P is bit-identical, so the result is exactly
+// update(z). On the MCU that is one division per sweep instead of one per channel (~1000 cycles
+// less per reused channel). A memo must only be shared by filters with identical parameters and
+// must not outlive a configure(): make it a local of the sweep.
 //
 // Template over Real (float on the MCU, double on the host). Measured float-vs-double difference:
 // tests/unit/common_numeric/kalman_test.cpp prints it. C++14, no standard library.
@@ -43,7 +45,6 @@ struct KalmanParams {
   Real gate_sigma = Real(5);                 // reject |innovation| > gate_sigma * sqrt(S)
   uint8_t max_consecutive_rejects = 3;       // then re-initialise on the measurement (0 = never)
   bool steady_state_gain = false;            // use the precomputed steady-state gain
-  bool settle_to_steady_state = false;       // full filter until settled, then steady-state gain
 };
 
 enum class KalmanOutcome : uint8_t {
@@ -60,6 +61,15 @@ inline double ksqrt(double v) { return sqrt(v); }
 }  // namespace detail_kalman
 
 template <class Real>
+struct KalmanGainMemo {
+  bool valid = false;
+  Real p;          // P before the update (the key)
+  Real gate_s;     // gate_sigma^2 * S
+  Real gain;       // K
+  Real p_post;     // P after an accepted update
+};
+
+template <class Real>
 class ScalarKalman {
  public:
   ScalarKalman() { configure(KalmanParams<Real>()); }
@@ -69,7 +79,6 @@ class ScalarKalman {
   bool configure(const KalmanParams<Real>& p) {
     max_consecutive_rejects_ = p.max_consecutive_rejects;
     steady_state_gain_mode_ = p.steady_state_gain;
-    settle_mode_ = p.settle_to_steady_state;
     q_ = p.process_noise_k2_per_s * p.dt_s;
     r2_ = p.measurement_noise_k * p.measurement_noise_k;
     valid_ = q_ > Real(0) && r2_ > Real(0) && p.gate_sigma > Real(0) && p.dt_s > Real(0);
@@ -86,24 +95,35 @@ class ScalarKalman {
   // diagnostics over the module's lifetime.
   void reset() {
     initialized_ = false;
-    settled_ = false;
     consecutive_rejects_ = 0;
     t_ = Real(0);
     p_ = Real(0);
   }
 
-  KalmanOutcome update(Real z) {
+  KalmanOutcome update(Real z) { return update(z, 0); }
+
+  // With a memo shared by filters of identical parameters (see above); memo may be null.
+  KalmanOutcome update(Real z, KalmanGainMemo<Real>* memo) {
     if (!valid_ || !(z == z)) return KalmanOutcome::kInvalid;
     if (!initialized_) {
       init_on(z);
       return KalmanOutcome::kInitialized;
     }
-    const bool steady = steady_state_gain_mode_ || settled_;
-    const Real prior = steady ? steady_prior_ : p_ + q_;
-    const Real s = prior + r2_;
     const Real nu = z - t_;
-    if (nu * nu > gate2_ * s) {
-      settled_ = false;  // P grows: the full recursion takes over again
+    if (memo != 0 && memo->valid && memo->p == p_) {
+      if (!(nu * nu > memo->gate_s)) {
+        consecutive_rejects_ = 0;
+        t_ += memo->gain * nu;
+        p_ = memo->p_post;
+        return KalmanOutcome::kAccepted;
+      }
+      memo = 0;  // a rejection: the full path below handles it (and leaves the memo alone)
+    }
+    const Real p_before = p_;
+    const Real prior = steady_state_gain_mode_ ? steady_prior_ : p_ + q_;
+    const Real s = prior + r2_;
+    const Real gate_s = gate2_ * s;
+    if (nu * nu > gate_s) {
       if (rejected_total_ != 0xFFFFU) ++rejected_total_;  // saturating lifetime counters
       ++consecutive_rejects_;
       if (max_consecutive_rejects_ != 0 && consecutive_rejects_ >= max_consecutive_rejects_) {
@@ -115,26 +135,22 @@ class ScalarKalman {
       return KalmanOutcome::kRejected;
     }
     consecutive_rejects_ = 0;
-    if (settled_) {
-      t_ += steady_gain_ * nu;  // P stays at the value the full recursion converged to
-      return KalmanOutcome::kAccepted;
-    }
     const Real k = steady_state_gain_mode_ ? steady_gain_ : prior / s;
     t_ += k * nu;
     p_ = steady_state_gain_mode_ ? steady_prior_ * (Real(1) - steady_gain_) : (Real(1) - k) * prior;
-    if (settle_mode_ && !steady_state_gain_mode_) {
-      const Real dk = k - steady_gain_;
-      settled_ = (dk < Real(0) ? -dk : dk) <= steady_gain_ * Real(1.52587890625e-5);  // 2^-16
+    if (memo != 0) {
+      memo->valid = true;
+      memo->p = p_before;
+      memo->gate_s = gate_s;
+      memo->gain = k;
+      memo->p_post = p_;
     }
     return KalmanOutcome::kAccepted;
   }
 
   // A sample without a measurement (e.g. conversion timed out): uncertainty grows.
   void predict_only() {
-    if (initialized_ && !steady_state_gain_mode_) {
-      p_ += q_;
-      settled_ = false;
-    }
+    if (initialized_ && !steady_state_gain_mode_) p_ += q_;
   }
 
   bool initialized() const { return initialized_; }
@@ -145,25 +161,21 @@ class ScalarKalman {
   uint16_t rejected_total() const { return rejected_total_; }
   uint16_t reinit_total() const { return reinit_total_; }
   uint8_t consecutive_rejects() const { return consecutive_rejects_; }
-  bool settled() const { return settled_; }
 
  private:
   void init_on(Real z) {
     initialized_ = true;
-    settled_ = false;
     consecutive_rejects_ = 0;
     t_ = z;
     p_ = steady_state_gain_mode_ ? steady_prior_ * (Real(1) - steady_gain_) : r2_;
   }
 
-  // Only what update() needs is kept (RAM: 7 Real + 8 bytes per channel, 36 B in float).
+  // Only what update() needs is kept (RAM: 7 Real + 6 bytes per channel, 34 B in float).
   Real q_ = Real(0), r2_ = Real(0), gate2_ = Real(0);
   Real steady_prior_ = Real(0), steady_gain_ = Real(0);
   Real t_ = Real(0), p_ = Real(0);
   bool valid_ = false;
   bool steady_state_gain_mode_ = false;
-  bool settle_mode_ = false;
-  bool settled_ = false;  // settle mode: gain converged, steady-state update in use
   uint8_t max_consecutive_rejects_ = 0;
   bool initialized_ = false;
   uint8_t consecutive_rejects_ = 0;

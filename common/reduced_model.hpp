@@ -37,7 +37,8 @@
 //     x        int32 Q11.20  range +-2048 K, LSB 9.5e-7 K; rounding per step (nearest) accumulates
 //                            at most 526 * 0.5 LSB = 2.5e-4 K even if every rounding had the same sign
 //     f        uint16 Q0.16  interpolation fraction, floor((s - s_i) * 2^16 / (s_{i+1} - s_i))
-//   Products are formed exactly in int64 and rounded once (nearest, ties away). No 64-bit division
+//   Products are formed exactly in int64 (32x32 widening multiplies) and rounded once (nearest,
+//   ties away); interpolation is exact 32-bit arithmetic (detail_rm). No 64-bit division
 //   is used (the fraction is a 32-bit division), which keeps the AVR image small.
 //   Measured deviation from the double reference: see tests/unit/common_numeric (reduced model test).
 //
@@ -498,10 +499,33 @@ inline SpeedSegment find_segment(const uint16_t* speeds, uint8_t n, uint16_t spe
 }
 
 namespace detail_rm {
+// The evaluation below is bit-identical to forming every product exactly in int64 and rounding
+// it once with fx::shift_right_round(..., kNearestHalfAway) (tests/unit/common_numeric checks
+// this against that reference on random operands), but avoids the AVR's slowest 64-bit paths:
+// products are 32x32->64 widening multiplications (__mulsidi3, not the 64x64 __muldi3), the
+// interpolation needs no 64-bit arithmetic at all, and the rounding shift is one add and one
+// shift (fx::shift_right_round: three variable 64-bit shifts and 64-bit compares).
+
+// round(v / 2^s), ties away from zero, for 1 <= s <= 62 and |v| < 2^63 - 2^(s-1) (no overflow of
+// the addition; every call below is far inside that by the Q formats in the header: |c x| < 2^62,
+// |d 2^20| < 2^51, |a x| < 2^61): floor((v + 2^(s-1) - [v < 0]) / 2^s).
+inline int64_t round_shift(int64_t v, int s) {
+  return (v + (fx::pow2(s - 1) - (v < 0 ? 1 : 0))) >> s;
+}
+
+// p0 + round((p1 - p0) * f / 2^16) in 32-bit arithmetic: the true difference d (33 bits) is
+// split as d = dh * 2^16 + dl with dl = d mod 2^16, so d * f / 2^16 = dh * f + dl * f / 2^16;
+// the result lies between p0 and p1, so computing modulo 2^32 gives it exactly.
 inline int32_t lerp_q(int32_t p0, int32_t p1, uint16_t f) {
-  const int64_t delta = static_cast<int64_t>(p1) - static_cast<int64_t>(p0);
-  return static_cast<int32_t>(
-      p0 + fx::shift_right_round(delta * f, kSpeedFracBits, fx::Rounding::kNearestHalfAway));
+  const bool negative = p1 < p0;
+  const uint32_t dm = static_cast<uint32_t>(p1) - static_cast<uint32_t>(p0);  // d mod 2^32
+  const uint32_t low = static_cast<uint32_t>(static_cast<uint16_t>(dm)) * f;   // dl * f
+  // dh * f mod 2^32, dh = floor(d / 2^16) = (dm >> 16) - (negative ? 2^16 : 0)
+  uint32_t r = static_cast<uint32_t>(p0) + static_cast<uint32_t>(static_cast<uint16_t>(dm >> 16)) * f -
+               (negative ? static_cast<uint32_t>(f) << 16 : 0U) + (low >> 16);
+  const uint16_t rem = static_cast<uint16_t>(low);
+  if (rem > 0x8000U || (rem == 0x8000U && !negative)) ++r;  // ties away from zero
+  return static_cast<int32_t>(r);
 }
 }  // namespace detail_rm
 
@@ -509,6 +533,10 @@ inline int32_t lerp_q(int32_t p0, int32_t p1, uint16_t f) {
 inline void interpolate(const ModelBreakpoint& lo, const ModelBreakpoint& hi, uint16_t frac_q16,
                         ModelBreakpoint& out) {
   using detail_rm::lerp_q;
+  if (frac_q16 == 0) {  // exactly breakpoint lo (lerp_q(p0, p1, 0) == p0)
+    out = lo;
+    return;
+  }
   out.a_q30 = lerp_q(lo.a_q30, hi.a_q30, frac_q16);
   out.b_q24 = lerp_q(lo.b_q24, hi.b_q24, frac_q16);
   for (uint8_t j = 0; j < kModelChannels; ++j) {
@@ -526,8 +554,8 @@ inline void reset(ReducedModelState& st) { st.x_q20 = 0; }
 inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_channel,
                       uint8_t enabled_mask, ReducedModelState& st, int32_t ambient_mK,
                       int32_t predicted_mK[kModelChannels]) {
-  const fx::Rounding kRound = fx::Rounding::kNearestHalfAway;
-  const int64_t x = st.x_q20;
+  using detail_rm::round_shift;
+  const int32_t x = st.x_q20;
   for (uint8_t j = 0; j < kModelChannels; ++j) {
     if (((enabled_mask >> j) & 1U) == 0 || ambient_mK == kModelNoPrediction) {
       predicted_mK[j] = kModelNoPrediction;
@@ -539,9 +567,13 @@ inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_ch
     }
     // theta (Q44) = c (Q24) * x (Q20) + d (Q24) * u * 2^20; |theta| < 2^62 by the Q ranges.
     int64_t theta_q44 = static_cast<int64_t>(p.c_q24[j]) * x;
-    if (running) theta_q44 += static_cast<int64_t>(p.d_q24[j]) * fx::pow2(kStateFracBits);
-    const int64_t theta_q20 = fx::shift_right_round(theta_q44, kGainFracBits, kRound);
-    const int64_t theta_mK = fx::shift_right_round(theta_q20 * 1000, kStateFracBits, kRound);
+    if (running) theta_q44 += static_cast<int64_t>(p.d_q24[j]) * static_cast<int32_t>(fx::pow2(kStateFracBits));
+    const int64_t theta_q20 = round_shift(theta_q44, kGainFracBits);
+    // |theta_q20| < 2^31 in practice (2048 K): one widening multiply then, else the 64-bit one.
+    const int64_t theta_q20_1000 = theta_q20 == static_cast<int32_t>(theta_q20)
+                                       ? static_cast<int64_t>(static_cast<int32_t>(theta_q20)) * 1000
+                                       : theta_q20 * 1000;
+    const int64_t theta_mK = round_shift(theta_q20_1000, kStateFracBits);
     // Keep the result inside the wire's i24 range and off the kMissing code.
     int64_t v = static_cast<int64_t>(ambient_mK) + theta_mK;
     if (v > kInt24Max) v = kInt24Max;
@@ -550,8 +582,10 @@ inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_ch
   }
   // x' = a x + b u, one rounding from Q50.
   int64_t acc_q50 = static_cast<int64_t>(p.a_q30) * x;
-  if (running) acc_q50 += static_cast<int64_t>(p.b_q24) * fx::pow2(kPoleFracBits + kStateFracBits - kGainFracBits);
-  st.x_q20 = fx::saturate<int32_t>(fx::shift_right_round(acc_q50, kPoleFracBits, kRound));
+  if (running)
+    acc_q50 += static_cast<int64_t>(p.b_q24) *
+               static_cast<int32_t>(fx::pow2(kPoleFracBits + kStateFracBits - kGainFracBits));
+  st.x_q20 = fx::saturate<int32_t>(round_shift(acc_q50, kPoleFracBits));
 }
 
 // One sample of the model at spindle speed `speed_rpm` (see the header for the definition).

@@ -171,22 +171,29 @@ class RtdInverse {
     s_.a = k.r0_ohm * k.a;
     s_.b = k.r0_ohm * k.b;
     s_.c = k.r0_ohm * k.c;
-    a2_ = s_.a * s_.a;
+    half_a_ = Real(0.5) * s_.a;
+    quarter_a2_ = half_a_ * half_a_;
     d_min_ = relative_rise(s_, Real(kRtdMinC) - Real(kRtdInverseMarginC));
     d_max_ = relative_rise(s_, Real(kRtdMaxC) + Real(kRtdInverseMarginC));
+    // The discriminant is linear in d: non-negative at both ends of the range means non-negative
+    // everywhere in it, and the per-call check can go (it folds away for constant coefficients).
+    disc_ok_ = quarter_a2_ + s_.b * d_min_ >= Real(0) && quarter_a2_ + s_.b * d_max_ >= Real(0);
   }
 
   // t(R) in degC for R in [R(-200 - margin), R(850 + margin)] (see kRtdInverseMarginC).
   RtdResult<Real> temperature(Real r_ohm) const {
     using namespace detail_rtd;
     if (!ok_) return fail<Real>(RtdStatus::kBadCoefficients);
-    if (r_ohm != r_ohm) return fail<Real>(RtdStatus::kNotANumber);
     const Real d = r_ohm - s_.r0_ohm;  // exact near R0 (Sterbenz)
-    if (d < d_min_) return fail<Real>(RtdStatus::kBelowRange);
+    // NaN fails this comparison too; telling it apart costs a compare only on failure.
+    if (!(d >= d_min_)) return fail<Real>(r_ohm != r_ohm ? RtdStatus::kNotANumber : RtdStatus::kBelowRange);
     if (d > d_max_) return fail<Real>(RtdStatus::kAboveRange);
-    const Real disc = a2_ + Real(4) * s_.b * d;
-    if (!(disc >= Real(0))) return fail<Real>(RtdStatus::kBadCoefficients);
-    Real t = Real(2) * d / (s_.a + rsqrt(disc));
+    // t = 2 d / (A' + sqrt(A'^2 + 4 B' d)) with numerator and denominator halved: the halving and
+    // quartering are exact in binary floating point (sqrt(x / 4) = sqrt(x) / 2 exactly), so this
+    // is bit-identical and saves two multiplications.
+    const Real disc = quarter_a2_ + s_.b * d;
+    if (!disc_ok_ && !(disc >= Real(0))) return fail<Real>(RtdStatus::kBadCoefficients);
+    Real t = d / (half_a_ + rsqrt(disc));
     if (d >= Real(0) || s_.c == Real(0)) return good<Real>(t);
     // Below 0 degC: Newton on the quartic. The start is already close (quadratic root), and
     // relative_rise is smooth and monotone there, so it converges quadratically.
@@ -205,9 +212,10 @@ class RtdInverse {
 
  private:
   RtdCoefficients<Real> s_;  // R0 and the coefficients scaled by R0
-  Real a2_;                  // A'^2
-  Real d_min_, d_max_;       // R - R0 at the ends of the accepted range
+  Real half_a_, quarter_a2_;  // A'/2, A'^2/4
+  Real d_min_, d_max_;        // R - R0 at the ends of the accepted range
   bool ok_;
+  bool disc_ok_;              // discriminant >= 0 over the whole range
 };
 
 // t(R) in degC for R in [R(-200 - margin), R(850 + margin)] (see kRtdInverseMarginC). Converting

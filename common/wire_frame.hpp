@@ -88,20 +88,20 @@ inline bool write_frame(Sink& sink, uint8_t type, uint8_t seq, const uint8_t* pa
 }
 
 // Resumable encoder for a sink that may refuse bytes (the MCU's UART ring, smaller than a frame):
-// the frame goes out over several calls without a frame buffer, without re-encoding the bytes
-// already sent and with the CRC computed once. The wire bytes are exactly write_frame's.
-//   FrameCursor c; start_frame(c, payload, len);   then, until it returns true:
+// the frame goes out over several calls without a frame buffer and without re-encoding the bytes
+// already sent; the CRC is accumulated as the bytes go out (one pass over the payload). The wire
+// bytes are exactly write_frame's.
+//   FrameCursor c; start_frame(c);   then, until it returns true:
 //   resume_frame(put, c, type, seq, payload, len)  (put(uint8_t) -> bool, false = byte refused)
 // type, seq and the payload must stay unchanged until the frame is complete.
 struct FrameCursor {
-  uint16_t crc;  // CRC-16 over version..payload
+  uint16_t crc;  // CRC-16 over the raw bytes sent so far (version..payload)
   uint8_t pos;   // next item: 0 = opening flag, 1..n = raw byte pos - 1, n + 1 = closing flag
   bool escaped;  // the ESC of raw byte pos - 1 is already out, its second byte is not
 };
 
-inline void start_frame(FrameCursor& c, uint8_t type, uint8_t seq, const uint8_t* payload, uint8_t len) {
-  const uint8_t header[kHeaderSize] = {kProtocolVersion, type, seq, len};
-  c.crc = crc16_ccitt(payload, len, crc16_ccitt(header, kHeaderSize));
+inline void start_frame(FrameCursor& c) {
+  c.crc = 0xFFFF;
   c.pos = 0;
   c.escaped = false;
 }
@@ -110,30 +110,41 @@ inline void start_frame(FrameCursor& c, uint8_t type, uint8_t seq, const uint8_t
 template <class Put>
 inline bool resume_frame(Put& put, FrameCursor& c, uint8_t type, uint8_t seq, const uint8_t* payload,
                          uint8_t len) {
-  const uint8_t n = static_cast<uint8_t>(kHeaderSize + len + kCrcSize);
+  const uint8_t body = static_cast<uint8_t>(kHeaderSize + len);
+  const uint8_t n = static_cast<uint8_t>(body + kCrcSize);
+  uint8_t pos = c.pos;
+  uint16_t crc = c.crc;
+  bool done = false;
   for (;;) {
+    uint8_t raw = kFlag;
     uint8_t b = kFlag;
-    if (c.pos != 0 && c.pos <= n) {
-      const uint8_t i = static_cast<uint8_t>(c.pos - 1);
-      if (i >= kHeaderSize + len) {
-        b = static_cast<uint8_t>(i == kHeaderSize + len ? c.crc : c.crc >> 8);
-      } else if (i >= kHeaderSize) {
-        b = payload[i - kHeaderSize];
+    if (pos != 0 && pos <= n) {
+      const uint8_t i = static_cast<uint8_t>(pos - 1);
+      if (i >= kHeaderSize) {
+        raw = i < body ? payload[i - kHeaderSize] : static_cast<uint8_t>(i == body ? crc : crc >> 8);
       } else {
-        b = i == 0 ? kProtocolVersion : i == 1 ? type : i == 2 ? seq : len;
+        raw = i == 0 ? kProtocolVersion : i == 1 ? type : i == 2 ? seq : len;
       }
-      if (needs_escape(b)) {
+      b = raw;
+      if (needs_escape(raw)) {
         if (!c.escaped) {
-          if (!put(kEsc)) return false;
+          if (!put(kEsc)) break;
           c.escaped = true;
         }
-        b = static_cast<uint8_t>(b ^ kEscXor);
+        b = static_cast<uint8_t>(raw ^ kEscXor);
       }
     }
-    if (!put(b)) return false;
+    if (!put(b)) break;
     c.escaped = false;
-    if (c.pos++ > n) return true;
+    if (pos != 0 && pos <= body) crc = crc16_ccitt_byte(crc, raw);
+    if (pos++ > n) {
+      done = true;
+      break;
+    }
   }
+  c.pos = pos;
+  c.crc = crc;
+  return done;
 }
 
 // Builds the raw (unstuffed) frame with an explicit version into raw (>= kMaxRawFrame bytes).

@@ -57,6 +57,7 @@ class Acquisition {
   static constexpr uint32_t kRailMarginCodes = 16;        // codes this close to a rail: saturated
 
   explicit Acquisition(Spi& spi) : adc_(spi) {
+    update_scale();
     counters_ = AcquisitionCounters();
     for (uint8_t i = 0; i < kChannels; ++i) {
       readings_[i].faults = wire::kFaultAdc;
@@ -71,6 +72,7 @@ class Acquisition {
   // A sweep in progress is restarted after the re-initialisation.
   void configure(const AcquisitionSetup& s) {
     setup_ = s;
+    update_scale();
     if (state_ == kConvStart || state_ == kConvWait || state_ == kBurnWait) {
       adc_.finish();
       sweep_requested_ = true;
@@ -196,7 +198,8 @@ class Acquisition {
         adc_.write(ad7794::kRegConfig, channel_config(channel_, true), 2);
         begin_wait(ad7794::kModeSingle, kBurnoutFs, now_ms, ad7794::settle_ms(kBurnoutFs));
         state_ = kBurnWait;
-        entropy_ = (entropy_ << 3) ^ (entropy_ >> 29) ^ (code & 0xFF);
+        // Rotate by whole bytes (register moves on AVR; a rotate by 3 is a ~250-cycle shift loop).
+        entropy_ = ((entropy_ << 8) | (entropy_ >> 24)) ^ (code & 0xFF) ^ (code >> 8 & 0xFF);
         evaluate(channel_, status, code);
         return wait_budget(now_ms);
       }
@@ -309,8 +312,9 @@ class Acquisition {
     // The AD7794 applied its own offset/full-scale calibration, the coding is unipolar: this is
     // code_to_resistance() (common/ratiometric.hpp) with an identity software calibration, whose
     // checks reduce to the configuration and the rails (a code between the rails cannot be negative
-    // or beyond the gain's range), written out so the per-reading cost is one conversion and two
-    // multiplications (raw_ratio() is exact, no division) instead of ~10 float operations.
+    // or beyond the gain's range). Written out, with the ohms per code prepared in configure()
+    // (R_ref times a power of two: exact), a reading costs one conversion and one multiplication
+    // -- the same single rounding of R_ref * code / (2^24 G) -- instead of ~10 float operations.
     // Same values and statuses (tests/unit/firmware/acquisition_test.cpp).
     const uint32_t margin = kRailMarginCodes;
     r.r_ohm = 0.0f;
@@ -324,7 +328,7 @@ class Acquisition {
     } else if (code >= kAdcFullScaleCode - margin) {
       rs = RatioStatus::kRailHigh;
     } else {
-      r.r_ohm = setup_.r_ref_ohm * raw_ratio<float>(code, ad7794::gain_of_code(setup_.gain_code), false);
+      r.r_ohm = static_cast<float>(code) * ohm_per_code_;
     }
     if (faults == 0) {
       switch (rs) {
@@ -366,8 +370,14 @@ class Acquisition {
     state_ = kIdle;
   }
 
+  // R_ref / (2^24 G): ohms per code (exact: R_ref scaled by a power of two).
+  void update_scale() {
+    ohm_per_code_ = setup_.r_ref_ohm * raw_ratio<float>(1, ad7794::gain_of_code(setup_.gain_code), false);
+  }
+
   Ad7794<Spi> adc_;
   AcquisitionSetup setup_;
+  float ohm_per_code_;
   AdcCalibration cal_[kChannels];
   ChannelReading readings_[kChannels];
   AcquisitionCounters counters_;

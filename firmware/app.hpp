@@ -118,7 +118,11 @@ class App {
       const uint32_t t = to_sweep > 0 ? static_cast<uint32_t>(to_sweep) : 0;
       if (t < budget) budget = t;
     }
-    if (out_pending_ || rx_backlog_ || reboot_pending_) budget = budget > 1 ? 1 : budget;
+    if ((rx_backlog_ && !out_pending_) || reboot_pending_) budget = budget > 1 ? 1 : budget;
+    // A frame larger than the UART ring: refill every kTxRefillMs. A ring of >= 40 bytes holds
+    // >= 3.4 ms of 115200 baud, so the line stays busy with a third of the polls of a 1 ms
+    // refill. (Received bytes wait for the frame anyway.)
+    if (out_pending_ && budget > kTxRefillMs) budget = kTxRefillMs;
     // Wake at least this often to kick the watchdog (2 s timeout).
     if (budget > kMaxSleepMs) budget = kMaxSleepMs;
     budget_ms_ = budget;
@@ -140,6 +144,7 @@ class App {
   static constexpr uint8_t kMaxBytesPerPoll = 32;
   static constexpr uint32_t kRebootDelayMs = 50;
   static constexpr uint32_t kMaxSleepMs = 500;
+  static constexpr uint32_t kTxRefillMs = 3;
 
   // ---- configuration ------------------------------------------------------------------------
   void apply_config() {
@@ -152,9 +157,6 @@ class App {
     kp.process_noise_k2_per_s = static_cast<float>(config_.kalman_q) * 1e-6f;
     kp.measurement_noise_k = sqrtf(static_cast<float>(config_.kalman_r)) * 1e-3f;
     kp.dt_s = static_cast<float>(config_.sample_period_ms) * 0.001f;
-    // Full filter until its gain has converged, then the division-free steady-state update
-    // (common/kalman.hpp): same estimates, ~1400 cycles less per channel and sweep.
-    kp.settle_to_steady_state = true;
     for (uint8_t j = 0; j < kChannels; ++j) kalman_[j].configure(kp);
     board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
     diagnosis_.configure(config_.alarm_latch != 0);
@@ -183,48 +185,57 @@ class App {
 
   // ---- measurement pipeline -----------------------------------------------------------------
   void process_sweep(uint32_t now) {
-    // Constant coefficients: with LTO the coefficient check and range limits of the inverse fold
-    // to constants here (nothing is re-checked per reading, and nothing needs RAM).
-    const RtdCoefficients<float> pt1000 = iec60751<float>(1000.0f);
-    for (uint8_t j = 0; j < kChannels; ++j) {
-      uint8_t faults = 0;
-      int32_t t_mK = wire::kMissing;
-      if (config_.roles[j] == static_cast<uint8_t>(wire::ChannelRole::Disabled)) {
-        status_[j] = wire::kStatusDisabled;
-        temp_mK_[j] = wire::kMissing;
-        kalman_[j].reset();
-        continue;
-      }
-      const ChannelReading& r = acq_.reading(j);
-      faults = r.faults;
-      if (faults == 0) {
-        const RtdResult<float> t = rtd_temperature<float>(pt1000, r.r_ohm);
-        if (!t.ok()) {
-          faults = t.status == RtdStatus::kBelowRange ? wire::kFaultShort : wire::kFaultOpen;
-        } else {
-          const KalmanOutcome o = kalman_[j].update(t.value);
-          if (o == KalmanOutcome::kRejected) {
-            faults |= wire::kFaultKalmanReject;
-            if (kalman_rejects_ != 0xFFFF) ++kalman_rejects_;
-          }
-          const float est = kalman_[j].estimate();
-          t_mK = static_cast<int32_t>(est * 1000.0f + (est >= 0.0f ? 0.5f : -0.5f));
-        }
-      }
-      const uint8_t hard_faults = faults & static_cast<uint8_t>(~wire::kFaultKalmanReject);
-      if (hard_faults != 0) {
-        t_mK = wire::kMissing;  // a faulty channel never reports a temperature
-        kalman_[j].reset();
-        if (sensor_faults_ != 0xFFFF) ++sensor_faults_;
-      }
-      temp_mK_[j] = t_mK;
-      status_[j] = faults;
-    }
+    // The channels' filters share their parameters, and normally their variance: one gain
+    // computation (a float division) serves all five (exact, see common/kalman.hpp).
+    KalmanGainMemo<float> memo;
+    for (uint8_t j = 0; j < kChannels; ++j) process_channel(j, memo);
     update_speed();
     run_model(now);
     diagnosis_.evaluate(store_.active() ? model_.limits : 0, temp_mK_, predicted_mK_, status_, config_.roles,
                         static_cast<uint32_t>(now - last_sweep_eval_ms_));
     last_sweep_eval_ms_ = now;
+  }
+
+  // One channel out of line: inlined into the loop (and with it into poll() and main()) the body
+  // ran out of registers and spent ~200 cycles per channel moving spilled pointers.
+  BTSM_NOINLINE void process_channel(uint8_t j, KalmanGainMemo<float>& memo) {
+    uint8_t faults = 0;
+    int32_t t_mK = wire::kMissing;
+    if (config_.roles[j] == static_cast<uint8_t>(wire::ChannelRole::Disabled)) {
+      status_[j] = wire::kStatusDisabled;
+      temp_mK_[j] = wire::kMissing;
+      kalman_[j].reset();
+      return;
+    }
+    const ChannelReading& r = acq_.reading(j);
+    faults = r.faults;
+    if (faults == 0) {
+      // Constant coefficients: with LTO the coefficient check and range limits of the inverse
+      // fold to constants here (nothing is re-checked per reading, and nothing needs RAM).
+      const RtdResult<float> t = rtd_temperature<float>(iec60751<float>(1000.0f), r.r_ohm);
+      if (!t.ok()) {
+        faults = t.status == RtdStatus::kBelowRange ? wire::kFaultShort : wire::kFaultOpen;
+      } else {
+        const KalmanOutcome o = kalman_[j].update(t.value, &memo);
+        if (o == KalmanOutcome::kRejected) {
+          faults |= wire::kFaultKalmanReject;
+          if (kalman_rejects_ != 0xFFFF) ++kalman_rejects_;
+        }
+        // Nearest mK, halves away from zero: truncate 2000 est (exactly twice est * 1000 in
+        // float), then halve in integers -- one float multiplication and conversion instead of a
+        // multiplication, a comparison, an addition and a conversion.
+        const int32_t twice = static_cast<int32_t>(kalman_[j].estimate() * 2000.0f);
+        t_mK = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);
+      }
+    }
+    const uint8_t hard_faults = faults & static_cast<uint8_t>(~wire::kFaultKalmanReject);
+    if (hard_faults != 0) {
+      t_mK = wire::kMissing;  // a faulty channel never reports a temperature
+      kalman_[j].reset();
+      if (sensor_faults_ != 0xFFFF) ++sensor_faults_;
+    }
+    temp_mK_[j] = t_mK;
+    status_[j] = faults;
   }
 
   void update_speed() {
@@ -273,14 +284,14 @@ class App {
   // ---- output -------------------------------------------------------------------------------
   struct SerialPut {
     Board* board;
-    bool operator()(uint8_t b) { return board->serial.write(b); }
+    BTSM_ALWAYS_INLINE bool operator()(uint8_t b) { return board->serial.write(b); }
   };
 
   BTSM_NOINLINE void queue_frame(wire::MsgType type, uint8_t seq, uint8_t len) {
     out_type_ = wire::type_code(type);
     out_seq_ = seq;
     out_len_ = len;
-    wire::start_frame(out_cursor_, out_type_, seq, out_payload_, len);
+    wire::start_frame(out_cursor_);
     out_pending_ = true;
     flush_output();
   }
@@ -288,8 +299,12 @@ class App {
   // Streams the pending frame into the UART ring; when the ring fills up the cursor remembers
   // where it stopped and the next poll continues from there (wire::resume_frame), so frames
   // larger than the ring need no extra buffer and nothing is encoded or checksummed twice.
-  BTSM_NOINLINE void flush_output() {
-    if (!out_pending_) return;
+  // Inline test, out-of-line work: poll() calls this twice, and with -mcall-prologues an
+  // out-of-line call that finds nothing to do still costs ~70 cycles of register saving.
+  void flush_output() {
+    if (out_pending_) continue_output();
+  }
+  BTSM_NOINLINE void continue_output() {
     SerialPut put = {&board_};
     if (wire::resume_frame(put, out_cursor_, out_type_, out_seq_, out_payload_, out_len_)) out_pending_ = false;
   }
@@ -318,7 +333,7 @@ class App {
     if (ack_after_write_) send_deferred_ack();
   }
 
-  void build_sample() {
+  BTSM_NOINLINE void build_sample() {
     wire::Sample s;
     s.sample_index = sample_index_++;
     s.time_ms = sweep_time_ms_ - start_ms_;

@@ -8,4 +8,9 @@
 #define BTSM_NOINLINE __attribute__((noinline))
 #endif
 
+// Forced inline for tiny per-byte helpers that -finline-limit=10 would leave as calls.
+#ifndef BTSM_ALWAYS_INLINE
+#define BTSM_ALWAYS_INLINE inline __attribute__((always_inline))
+#endif
+
 #endif

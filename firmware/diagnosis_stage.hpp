@@ -10,6 +10,7 @@
 #include "common/diagnosis.hpp"
 #include "common/reduced_model.hpp"
 #include "common/wire_messages.hpp"
+#include "firmware/compiler.hpp"
 
 namespace btsm {
 
@@ -27,42 +28,11 @@ class DiagnosisStage {
   // limits: per-channel limits of the active model, or null without a model (common defaults).
   // Channels are updated one at a time with one DiagInput/DiagChannelLimits on the stack: an
   // array of them with default initialisers would cost an SRAM image on AVR.
-  void evaluate(const ChannelLimits* limits, const int32_t* temp_mK, const int32_t* predicted_mK,
-                const uint8_t* fault_bits, const uint8_t* roles, uint32_t dt_ms) {
+  BTSM_NOINLINE void evaluate(const ChannelLimits* limits, const int32_t* temp_mK, const int32_t* predicted_mK,
+                              const uint8_t* fault_bits, const uint8_t* roles, uint32_t dt_ms) {
     mask_ = 0;
-    for (uint8_t j = 0; j < kChannels; ++j) {
-      const uint8_t role = roles[j];
-      const bool thermal = role != static_cast<uint8_t>(wire::ChannelRole::Disabled) &&
-                           role != static_cast<uint8_t>(wire::ChannelRole::Ambient) &&
-                           role != static_cast<uint8_t>(wire::ChannelRole::Spare);
-      const bool fault =
-          (fault_bits[j] & static_cast<uint8_t>(~wire::kFaultKalmanReject & ~wire::kStatusDisabled)) != 0;
-      fault_[j] = fault && role != static_cast<uint8_t>(wire::ChannelRole::Disabled);
-      if (!thermal) {
-        ch_[j].reset();
-        continue;
-      }
-      mask_ = static_cast<uint8_t>(mask_ | (1u << j));
-      if (dt_ms > 0 && dt_ms < 65536UL) rise_[j].set_dt_ms_keep(static_cast<uint16_t>(dt_ms));
-      DiagInput in;
-      in.fault = fault;
-      in.measured_mK = temp_mK[j];
-      in.predicted_mK = limits != 0 ? predicted_mK[j] : kDiagNoValue;
-      if (fault || temp_mK[j] == wire::kMissing) {
-        rise_[j].reset();
-        in.rise_mK_per_min = kDiagNoValue;
-      } else {
-        in.rise_mK_per_min = rise_[j].push(temp_mK[j]);
-      }
-      DiagChannelLimits lim;
-      if (limits != 0) {
-        lim.warn_band_mK = limits[j].warn_band_mK;
-        lim.alarm_band_mK = limits[j].alarm_band_mK;
-        lim.abs_limit_mK = limits[j].abs_limit_mK;
-        lim.max_rise_mK_per_min = limits[j].max_rise_mK_per_min;
-      }
-      ch_[j].update(in, lim, timing_);
-    }
+    Sweep sw = {limits, temp_mK, predicted_mK, fault_bits, roles, dt_ms, 0.0f, 0};
+    for (uint8_t j = 0; j < kChannels; ++j) evaluate_channel(j, sw);
   }
 
   // Wire DiagState (2 bits) of a channel.
@@ -87,6 +57,61 @@ class DiagnosisStage {
   }
 
  private:
+  struct Sweep {
+    const ChannelLimits* limits;
+    const int32_t* temp_mK;
+    const int32_t* predicted_mK;
+    const uint8_t* fault_bits;
+    const uint8_t* roles;
+    uint32_t dt_ms;
+    // One division for all channels (they share the sample period): 1 / rise window in minutes,
+    // recomputed only for a channel whose window dt differs (per_min_dt = 0: none yet).
+    float per_min;
+    uint16_t per_min_dt;
+  };
+
+  // One channel out of line: inlined into the channel loop the body ran out of registers and
+  // spent ~150 cycles per channel moving spilled loop pointers.
+  BTSM_NOINLINE void evaluate_channel(uint8_t j, Sweep& sw) {
+    const uint8_t role = sw.roles[j];
+    const bool thermal = role != static_cast<uint8_t>(wire::ChannelRole::Disabled) &&
+                         role != static_cast<uint8_t>(wire::ChannelRole::Ambient) &&
+                         role != static_cast<uint8_t>(wire::ChannelRole::Spare);
+    const bool fault =
+        (sw.fault_bits[j] & static_cast<uint8_t>(~wire::kFaultKalmanReject & ~wire::kStatusDisabled)) != 0;
+    fault_[j] = fault && role != static_cast<uint8_t>(wire::ChannelRole::Disabled);
+    if (!thermal) {
+      ch_[j].reset();
+      return;
+    }
+    mask_ = static_cast<uint8_t>(mask_ | (1u << j));
+    if (sw.dt_ms > 0 && sw.dt_ms < 65536UL) rise_[j].set_dt_ms_keep(static_cast<uint16_t>(sw.dt_ms));
+    const int32_t t_mK = sw.temp_mK[j];
+    DiagInput in;
+    in.fault = fault;
+    in.measured_mK = t_mK;
+    in.predicted_mK = sw.limits != 0 ? sw.predicted_mK[j] : kDiagNoValue;
+    if (fault || t_mK == wire::kMissing) {
+      rise_[j].reset();
+      in.rise_mK_per_min = kDiagNoValue;
+    } else {
+      if (rise_[j].dt_ms() != sw.per_min_dt) {
+        sw.per_min_dt = rise_[j].dt_ms();
+        sw.per_min = RiseRate<kRiseWindow>::per_min_factor(sw.per_min_dt);
+      }
+      in.rise_mK_per_min = rise_[j].push_scaled(t_mK, sw.per_min);
+    }
+    DiagChannelLimits lim;
+    if (sw.limits != 0) {
+      const ChannelLimits& l = sw.limits[j];
+      lim.warn_band_mK = l.warn_band_mK;
+      lim.alarm_band_mK = l.alarm_band_mK;
+      lim.abs_limit_mK = l.abs_limit_mK;
+      lim.max_rise_mK_per_min = l.max_rise_mK_per_min;
+    }
+    ch_[j].update(in, lim, timing_);
+  }
+
   // RiseRate with a dt that can follow the measured sweep interval without losing its window
   // when the interval is unchanged.
   class Rise : public RiseRate<kRiseWindow> {

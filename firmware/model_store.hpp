@@ -199,8 +199,15 @@ class ModelStore {
   void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
                   int32_t* predicted_mK) const {
     const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
-    ModelBreakpoint lo, hi;
+    ModelBreakpoint lo;
     read_breakpoint(seg.lo, lo);
+    if (seg.frac_q16 == 0) {
+      // At a breakpoint (stopped, at or above the top speed, or exactly on one): lo is the
+      // interpolated point, the other breakpoint need not be read from EEPROM.
+      step_with(lo, seg.running, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
+      return;
+    }
+    ModelBreakpoint hi;
     read_breakpoint(seg.hi, hi);
     ModelBreakpoint p;
     interpolate(lo, hi, seg.frac_q16, p);

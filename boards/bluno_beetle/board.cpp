@@ -35,12 +35,18 @@ extern "C" const uint8_t btsm_device_key_record[btsm::device_key::kRecordSize]
 #endif
 };
 
+// Transmit ring, shared with the inline Serial::write() in board.hpp.
+volatile uint8_t btsm::bluno::detail::tx_buf[btsm::bluno::kTxBufferBytes];
+volatile uint8_t btsm::bluno::detail::tx_head;  // written by Serial::write
+volatile uint8_t btsm::bluno::detail::tx_tail;  // written by the UDRE ISR
+
 namespace {
+using btsm::bluno::detail::tx_buf;
+using btsm::bluno::detail::tx_head;
+using btsm::bluno::detail::tx_tail;
 
 volatile uint8_t rx_buf[btsm::bluno::kRxBufferBytes];
-volatile uint8_t tx_buf[btsm::bluno::kTxBufferBytes];
 volatile uint8_t rx_head, rx_tail;  // head: written by ISR
-volatile uint8_t tx_head, tx_tail;  // tail: read by ISR
 volatile uint32_t ms_ticks;
 volatile uint16_t timer1_high;      // Timer1 overflow count: 32-bit time base of 4 us ticks
 volatile uint32_t tach_period_ticks;
@@ -86,12 +92,13 @@ ISR(USART_RX_vect) {
 }
 
 ISR(USART_UDRE_vect) {
-  if (tx_head == tx_tail) {
+  const uint8_t tail = tx_tail;  // one volatile read: the ISR is the only writer
+  if (tx_head == tail) {
     UCSR0B &= static_cast<uint8_t>(~(1 << UDRIE0));
     return;
   }
-  UDR0 = tx_buf[tx_tail];
-  tx_tail = ring_next(tx_tail, btsm::bluno::kTxBufferBytes);
+  UDR0 = tx_buf[tail];
+  tx_tail = ring_next(tail, btsm::bluno::kTxBufferBytes);
 }
 
 ISR(TIMER0_COMPA_vect) { ms_ticks = ms_ticks + 1; }
@@ -112,15 +119,6 @@ bool Serial::read(uint8_t& b) {
   if (rx_head == rx_tail) return false;
   b = rx_buf[rx_tail];
   rx_tail = ring_next(rx_tail, kRxBufferBytes);
-  return true;
-}
-
-bool Serial::write(uint8_t b) {
-  const uint8_t next = ring_next(tx_head, kTxBufferBytes);
-  if (next == tx_tail) return false;
-  tx_buf[tx_head] = b;
-  tx_head = next;
-  UCSR0B |= (1 << UDRIE0);
   return true;
 }
 

@@ -28,7 +28,9 @@ struct Pins {
 };
 
 static constexpr uint16_t kRxBufferBytes = 48;
-static constexpr uint16_t kTxBufferBytes = 40;
+// 72: a SAMPLE frame (~62-66 wire bytes) fits whole, so it is queued in one poll instead of being
+// refilled over several (each poll costs a few hundred cycles). Ring indices are uint8_t.
+static constexpr uint16_t kTxBufferBytes = 72;
 
 // Forced inline: each is one to four instructions, smaller than a call with its register
 // shuffling, and transfer() runs ~200 times per sweep (-finline-limit=10 would keep them calls).
@@ -45,9 +47,23 @@ struct Spi {
   static BTSM_BOARD_INLINE bool miso_high() { return (PINB & (1 << Pins::kMiso)) != 0; }
 };
 
+namespace detail {
+extern volatile uint8_t tx_buf[kTxBufferBytes];
+extern volatile uint8_t tx_head, tx_tail;
+}  // namespace detail
+
 struct Serial {
   static bool read(uint8_t& b);
-  static bool write(uint8_t b);
+  // Inline: a frame is ~60 calls in a row (the ring index wraps by compare, there is no divider).
+  static BTSM_BOARD_INLINE bool write(uint8_t b) {
+    const uint8_t head = detail::tx_head;  // only this function writes it
+    const uint8_t next = head + 1 == kTxBufferBytes ? 0 : static_cast<uint8_t>(head + 1);
+    if (next == detail::tx_tail) return false;
+    detail::tx_buf[head] = b;
+    detail::tx_head = next;
+    UCSR0B |= (1 << UDRIE0);
+    return true;
+  }
   static uint16_t tx_free();
 };
 

@@ -7,6 +7,8 @@
 #include "boards/sim/plant/probes.hpp"
 #include "boards/sim/runner/sim_module.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
+#include "tests/hil/sim/model_upload.hpp"
+#include "tests/simavr/sim/avr_link.hpp"
 
 #include <elf.h>
 
@@ -66,24 +68,16 @@ struct CycleFigures {
   uint64_t spi_bytes_per_sweep = 0;
 };
 
-// Runs the image for `seconds` with fixed probe resistances, in 2 ms bins. A sweep is the stretch
-// from the first to the last SPI byte of a sample period plus 40 ms for the frame to be sent.
-CycleFigures measure_cycles(const std::string& elf, double seconds) {
-  btsm::sim::Ad7794Model adc;
-  const double temps[5] = {33.5, 32.1, 30.7, 20.0, 26.0};
-  for (int i = 0; i < 5; ++i) adc.front_end().probe_ohm[size_t(i)] = btsm::sim::pt1000_ohm(temps[i]);
-  btsm::sim::SpiModelAdapter<btsm::sim::Ad7794Model> bus(adc);
-  btsm::sim::HarnessOptions o;
-  o.elf_path = elf;
-  btsm::sim::SimavrHarness h(o, &bus);
-  h.set_tach_hz(100.0);
+// Runs the image for `seconds` from `start_s` on, in 2 ms bins. A sweep is the stretch from the
+// first to the last SPI byte of a sample period plus 40 ms for the frame to be sent.
+CycleFigures measure_cycles(btsm::sim::SimavrHarness& h, double start_s, double seconds) {
   const double bin = 0.002;
   std::vector<uint64_t> active, spi;
-  h.run_until(2.0);  // boot and calibration are not part of the steady-state figure
+  h.run_until(start_s);
   auto last = h.stats();
   const int bins = int(seconds / bin);
   for (int i = 0; i < bins; ++i) {
-    h.run_until(2.0 + (i + 1) * bin);
+    h.run_until(start_s + (i + 1) * bin);
     const auto s = h.stats();
     active.push_back(s.active_cycles() - last.active_cycles());
     spi.push_back(s.spi_bytes - last.spi_bytes);
@@ -125,11 +119,52 @@ CycleFigures measure_cycles(const std::string& elf, double seconds) {
     c.spi_bytes_per_sweep = spi_sum / uint64_t(c.sweeps);
   }
   if (std::getenv("BTSM_BENCH_VERBOSE"))
-    for (const auto& sw : sweeps) std::printf("   sweep %.3f .. %.3f s\n", 2.0 + sw.first * bin, 2.0 + sw.second * bin);
+    for (const auto& sw : sweeps) std::printf("   sweep %.3f .. %.3f s\n", start_s + sw.first * bin, start_s + sw.second * bin);
   if (sweeps.size() >= 3) c.period_s = (sweeps[sweeps.size() - 2].first - sweeps[1].first) * bin / double(sweeps.size() - 3);
   const auto s = h.stats();
   c.duty_total = double(s.active_cycles()) / double(s.cycles);
   return c;
+}
+
+const double kProbeTempsC[5] = {33.5, 32.1, 30.7, 20.0, 26.0};
+
+// Without a model: the image as flashed, fixed probe resistances, tach at 100 Hz (6000 rpm).
+CycleFigures measure_cycles(const std::string& elf, double seconds) {
+  btsm::sim::Ad7794Model adc;
+  for (int i = 0; i < 5; ++i) adc.front_end().probe_ohm[size_t(i)] = btsm::sim::pt1000_ohm(kProbeTempsC[i]);
+  btsm::sim::SpiModelAdapter<btsm::sim::Ad7794Model> bus(adc);
+  btsm::sim::HarnessOptions o;
+  o.elf_path = elf;
+  btsm::sim::SimavrHarness h(o, &bus);
+  h.set_tach_hz(100.0);
+  return measure_cycles(h, 2.0, seconds);  // boot and calibration are not part of the figure
+}
+
+// The production configuration: the same, with a reduced model uploaded (authenticated, over the
+// UART) and running, so every sweep also steps the model and checks the model's limits.
+CycleFigures measure_cycles_with_model(const std::string& elf, double seconds) {
+  setenv("BTSM_FW_ELF", elf.c_str(), 1);  // btsm::test::firmware_elf()
+  btsm::test::AvrLink l;
+  for (int i = 0; i < 5; ++i) l.adc.front_end().probe_ohm[size_t(i)] = btsm::sim::pt1000_ohm(kProbeTempsC[i]);
+  l.h->set_tach_hz(100.0);
+  l.step(0.5);
+  uint8_t seq = 0;
+  if (btsm::test::upload_model(l, btsm::test::spindle_model_blob(0), seq) != 0) {
+    std::printf("   model upload failed\n");
+    return CycleFigures();
+  }
+  return measure_cycles(*l.h, std::max(2.0, l.h->time_s() + 0.5), seconds);
+}
+
+void print_cycles(const CycleFigures& c) {
+  std::printf("   active cycles per 5-channel sample cycle (idle tick load removed): mean %.0f, max %.0f"
+              " (target <= 40000: %s)\n", c.sweep_cycles, c.sweep_cycles_max, c.sweep_cycles <= 40000 ? "met" : "NOT met");
+  std::printf("   SPI bytes per sweep: %llu\n", (unsigned long long)c.spi_bytes_per_sweep);
+  std::printf("   idle load outside sweeps: %.0f cycles/s (%.2f %% of the CPU)\n", c.idle_cycles_per_s,
+              100.0 * c.idle_cycles_per_s / 16e6);
+  if (c.period_s > 0)
+    std::printf("   sample period %.2f s: sweep duty %.4f %% (target < 1 %%), total duty incl. idle load %.3f %%\n",
+                c.period_s, 100.0 * c.sweep_cycles / (c.period_s * 16e6), 100.0 * c.duty_total);
 }
 
 double speedup(btsm::sim::BoardKind kind, const std::string& elf, double sim_s) {
@@ -166,15 +201,11 @@ int main(int argc, char** argv) {
                 100.0 * double(s.ram) / 1536.0, s.ram <= 1536 ? "OK" : "OVER BUDGET");
 
     const auto c = measure_cycles(elf, 42.0);
-    std::printf("-- CPU (simavr, 16 MHz, SPI at fosc/4, %d sweeps)\n", c.sweeps);
-    std::printf("   active cycles per 5-channel sample cycle (idle tick load removed): mean %.0f, max %.0f"
-                " (target <= 40000: %s)\n", c.sweep_cycles, c.sweep_cycles_max, c.sweep_cycles <= 40000 ? "met" : "NOT met");
-    std::printf("   SPI bytes per sweep: %llu\n", (unsigned long long)c.spi_bytes_per_sweep);
-    std::printf("   idle load outside sweeps: %.0f cycles/s (%.2f %% of the CPU)\n", c.idle_cycles_per_s,
-                100.0 * c.idle_cycles_per_s / 16e6);
-    if (c.period_s > 0)
-      std::printf("   sample period %.2f s: sweep duty %.4f %% (target < 1 %%), total duty incl. idle load %.3f %%\n",
-                  c.period_s, 100.0 * c.sweep_cycles / (c.period_s * 16e6), 100.0 * c.duty_total);
+    std::printf("-- CPU (simavr, 16 MHz, SPI at fosc/4, %d sweeps, no model)\n", c.sweeps);
+    print_cycles(c);
+    const auto m = measure_cycles_with_model(elf, 42.0);
+    std::printf("-- CPU with a reduced model active (%d sweeps; model step and limit checks included)\n", m.sweeps);
+    print_cycles(m);
   }
   std::printf("-- simulated-time speed-up (sim s per wall s, 1 h profile, plant + AD7794 + firmware)\n");
   const double native = speedup(btsm::sim::BoardKind::Native, elf, 3600.0);

@@ -147,6 +147,45 @@ TEST(Kalman, SteadyStateGainMatchesTheFullFilterOnceSettled) {
   EXPECT_LT(worst_after_settling, 1e-9);
 }
 
+// The gain memo (several filters with the same parameters sharing one gain computation per
+// sample) gives bit-identical results to independent updates, through initialisation, rejects,
+// re-initialisation and a reset of one filter (which then has a different variance than the rest).
+TEST(Kalman, GainMemoIsBitIdenticalToIndependentFilters) {
+  KalmanParams<float> p;
+  p.process_noise_k2_per_s = 4e-4f;
+  p.measurement_noise_k = 0.05f;
+  p.dt_s = 5.0f;
+  ScalarKalman<float> plain[5], memo_f[5];
+  for (int j = 0; j < 5; ++j) {
+    plain[j].configure(p);
+    memo_f[j].configure(p);
+  }
+  std::mt19937 rng(7);
+  std::normal_distribution<float> noise(0.0f, 0.05f);
+  int hits = 0;
+  for (int k = 0; k < 400; ++k) {
+    KalmanGainMemo<float> memo;
+    for (int j = 0; j < 5; ++j) {
+      float z = 20.0f + 3.0f * j + 0.001f * k + noise(rng);
+      if ((k * 7 + j) % 53 == 0) z += 5.0f;            // outliers: rejected, P differs afterwards
+      if (k >= 200 && k < 204 && j == 2) z += 4.0f;    // a real step: re-initialisation
+      if (k == 300 && j == 4) {
+        plain[j].reset();
+        memo_f[j].reset();
+      }
+      const float p_before = memo_f[j].variance();
+      const bool hit = memo.valid && memo.p == p_before;
+      const KalmanOutcome a = plain[j].update(z);
+      const KalmanOutcome b = memo_f[j].update(z, &memo);
+      ASSERT_EQ(a, b) << k << " " << j;
+      ASSERT_EQ(plain[j].estimate(), memo_f[j].estimate()) << k << " " << j;
+      ASSERT_EQ(plain[j].variance(), memo_f[j].variance()) << k << " " << j;
+      if (hit) ++hits;
+    }
+  }
+  EXPECT_GT(hits, 800);  // about half of the updates reuse another channel's gain here (many outliers)
+}
+
 // Run the same data through the float (MCU) and double filters: a 24 h warm-up ramp 20 -> 60 degC
 // with 10 mK noise, 1 % outliers of +-2 K and one real 4 K step; print and bound the difference.
 template <class Real>

@@ -4,6 +4,8 @@
 
 #include <gtest/gtest.h>
 
+#include <random>
+
 #include <cmath>
 #include <cstdio>
 #include <vector>
@@ -207,6 +209,36 @@ TEST(ReducedModelQuantize, RejectsValuesThatDoNotFitWithLocation) {
     EXPECT_EQ(c.status, k.expected) << k.what << ": got " << model_status_name(c.status);
     EXPECT_EQ(c.breakpoint, k.bp) << k.what;
     EXPECT_EQ(c.channel, k.ch) << k.what;
+  }
+}
+
+// The evaluation primitives (32-bit interpolation, one-add rounding shift) are bit-identical to
+// forming the products in int64 and rounding with fx::shift_right_round.
+TEST(ReducedModelEval, FastPrimitivesMatchTheInt64Reference) {
+  std::mt19937_64 g(5);
+  for (int i = 0; i < 2000000; ++i) {
+    int32_t p0 = static_cast<int32_t>(g()), p1 = static_cast<int32_t>(g());
+    uint16_t f = static_cast<uint16_t>(g());
+    if (i % 4 == 0) p1 = static_cast<int32_t>(static_cast<int64_t>(p0) + static_cast<int64_t>(g() % 2001) - 1000);
+    if (i % 8 == 1) f = (g() % 2) ? 0x8000 : 1;
+    if (i % 16 == 3) {  // exact ties (odd difference, f = 1/2), both signs
+      p0 /= 2;
+      p1 = p0 + 2 * static_cast<int32_t>(g() % 5) - 5;
+      f = 0x8000;
+    }
+    const int64_t d = static_cast<int64_t>(p1) - p0;
+    const int32_t ref = static_cast<int32_t>(p0 + fx::shift_right_round(d * f, kSpeedFracBits, fx::Rounding::kNearestHalfAway));
+    ASSERT_EQ(detail_rm::lerp_q(p0, p1, f), ref) << p0 << " " << p1 << " " << f;
+  }
+  for (int i = 0; i < 2000000; ++i) {
+    int s = 1 + static_cast<int>(g() % 61);
+    int64_t v = static_cast<int64_t>(g()) / (static_cast<int64_t>(2) << (g() % 40));
+    if (i % 3 == 0) {  // ties and near-ties
+      s = 1 + static_cast<int>(g() % 50);
+      v = (static_cast<int64_t>(g() % 1000) - 500) * fx::pow2(s - 1) + static_cast<int64_t>(g() % 3) - 1;
+    }
+    ASSERT_EQ(detail_rm::round_shift(v, s), fx::shift_right_round(v, s, fx::Rounding::kNearestHalfAway))
+        << v << " >> " << s;
   }
 }
 

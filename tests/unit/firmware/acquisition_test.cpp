@@ -52,6 +52,27 @@ TEST_F(AcqFixture, CalibratesEveryChannelAndMeasuresTheResistances) {
   EXPECT_EQ(acq.counters().inits, 1u);
 }
 
+// evaluate() writes code_to_resistance() (identity software calibration, unipolar) out with a
+// prepared ohms-per-code scale: same value to the last bit, over the whole probe range.
+TEST_F(AcqFixture, ResistanceIsBitIdenticalToCodeToResistance) {
+  RatiometricConfig<float> cfg;
+  cfg.r_ref_ohm = AcquisitionSetup().r_ref_ohm;
+  cfg.gain = ad7794::gain_of_code(AcquisitionSetup().gain_code);
+  cfg.bipolar = false;
+  cfg.rail_margin_codes = 16;
+  for (double t = -60.0; t <= 165.0; t += 22.7) {  // up to ~1.66 kOhm: gain 4 reaches 1.7 kOhm
+    for (int j = 0; j < 5; ++j) board.front_end().probe_ohm[j] = test::pt1000_ohm(t + j);
+    ASSERT_TRUE(sweep());
+    for (uint8_t j = 0; j < 5; ++j) {
+      const ChannelReading& r = acq.reading(j);
+      ASSERT_EQ(r.faults, 0) << t;
+      const RatioResult<float> ref = code_to_resistance<float>(r.code, false, cfg, ChannelCalibration<float>());
+      ASSERT_TRUE(ref.ok());
+      EXPECT_EQ(r.r_ohm, ref.r_ohm) << "t " << t << " channel " << int(j) << " code " << r.code;
+    }
+  }
+}
+
 TEST_F(AcqFixture, SharedCalibrationPairIsRestoredOnChannelSwitch) {
   ASSERT_TRUE(sweep());
   // The last channel converted was AIN5: its pair is loaded. The next sweep converts AIN4 with
