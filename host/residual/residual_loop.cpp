@@ -314,6 +314,27 @@ LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& bas
     bp = L.base_fit.params;
     bx0 = L.base_fit.initial_states;
     base_free = L.base_fit.free_parameter_count;
+    // The staged pipeline restarts its cooling stages from the data; on a model that lacks an
+    // effect it can land in a worse minimum than the start it was given. Keep the better one, so
+    // "before" is never made to look worse than the model the caller already had.
+    if (base_params_in.size() == base.param_count()) {
+      double rss_start = 0, rss_fit = 0;
+      std::vector<Eigen::VectorXd> x0_start;
+      for (std::size_t r = 0; r < fit.size(); ++r) {
+        const Evaluation es = evaluate_model(base, base_params_in, fit[r]);
+        const Evaluation ef = evaluate_model(base, bp, fit[r], nullptr, &bx0[r]);
+        rss_start += es.residual_k.unaryExpr([](double v) { return std::isfinite(v) ? v * v : 0.0; }).sum();
+        rss_fit += ef.residual_k.unaryExpr([](double v) { return std::isfinite(v) ? v * v : 0.0; }).sum();
+        x0_start.push_back(es.x0_c);
+      }
+      if (rss_start < rss_fit) {
+        say(o, "residual: the refit base is worse than the given start; keeping the start");
+        bp = base_params_in;
+        bx0 = x0_start;
+        L.base_fit.params = bp;
+        L.base_fit.initial_states = bx0;
+      }
+    }
   } else {
     if (base_params_in.size() != base.param_count()) throw std::invalid_argument("residual: the base model needs a value for every parameter");
     bp = base_params_in;
