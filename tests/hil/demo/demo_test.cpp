@@ -6,6 +6,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <cstdlib>
 #include <filesystem>
 #include <fstream>
 #include <sstream>
@@ -29,7 +30,7 @@ struct DemoRun {
   btsm::demo::DemoSummary summary;
 };
 
-// One demo run shared by the tests below (it takes ~30 s on the native board).
+// One demo run shared by the tests below (~30 s on the native board, ~3 min on the AVR image).
 const DemoRun& demo_run() {
   static const DemoRun run = [] {
     DemoRun r;
@@ -37,7 +38,10 @@ const DemoRun& demo_run() {
     fs::remove_all(r.out);
     btsm::demo::DemoOptions o;
     o.out_dir = r.out.string();
-    o.board = "native";
+    // BTSM_DEMO_BOARD=avr (and BTSM_FW_ELF) runs the same checks on the real image in simavr.
+    const char* board = std::getenv("BTSM_DEMO_BOARD");
+    o.board = board && *board ? board : "native";
+    if (const char* elf = std::getenv("BTSM_FW_ELF")) o.elf_path = elf;
     r.summary = btsm::demo::run_demo(o);
     return r;
   }();
