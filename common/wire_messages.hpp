@@ -161,7 +161,7 @@ const uint8_t kFaultKalmanReject = 0x40; // last reading rejected as an outlier 
 const uint8_t kStatusDisabled = 0x80;    // channel role is Disabled (temp is kMissing)
 
 // SAMPLE overall = worst DiagState | flags; bits 5..7 are reserved and must be 0.
-const uint8_t kOverallAlarmLatched = 0x04;  // an ALARM is latched until ACK_ALARM
+const uint8_t kOverallAlarmLatched = 0x04;  // an ALARM is latched (until ACK_ALARM or M normal samples)
 const uint8_t kOverallModelActive = 0x08;   // a valid reduced model is predicting
 const uint8_t kOverallSpeedFromTach = 0x10; // speed_rpm measured by tach (else host-set)
 const uint8_t kOverallReservedMask = 0xE0;
@@ -173,10 +173,11 @@ enum class ConfigKey : uint8_t {
   TachPulsesPerRev = 0x02,    // tach pulses per spindle revolution; [1, 64], default 1
   RrefMilliohm = 0x03,        // reference resistor, mOhm; [1000000, 20000000], default 6800000
   AdcUpdateRateCode = 0x04,   // AD7794 FS code; [1, 15], default 10 (16.7 Hz, 50/60 Hz reject)
-  KalmanProcessNoise = 0x05,  // Kalman q, (mK)^2 per second of sample period; [0, 100000000],
-                              // default 400 (20 mK/sqrt(s) random walk)
+  KalmanProcessNoise = 0x05,  // Kalman q, (mK)^2 per second of sample period; [1, 100000000],
+                              // default 400 (20 mK/sqrt(s) random walk). 0 is out of range (NACK
+                              // BadValue): a filter without process noise cannot follow anything
   KalmanMeasurementNoise = 0x06,  // Kalman r, (mK)^2; [1, 100000000], default 2500 (50 mK rms)
-  AlarmLatch = 0x07,          // 1 = ALARM stays until ACK_ALARM, 0 = clears itself; default 1
+  AlarmLatch = 0x07,          // 1 = ALARM stays until ACK_ALARM or M normal samples (diagnosis), 0 = clears with the cause; default 1
   ChannelRole0 = 0x10,        // ChannelRole of channel 1 (keys 0x10..0x14 = channels 1..5)
 };
 const uint8_t kChannelRoleKeyFirst = 0x10;
@@ -253,7 +254,7 @@ inline bool config_key_range(uint8_t key, ConfigRange& r) {
     case ConfigKey::TachPulsesPerRev: return detail::set_range(r, 1L, 64L, 1L);
     case ConfigKey::RrefMilliohm: return detail::set_range(r, 1000000L, 20000000L, 6800000L);
     case ConfigKey::AdcUpdateRateCode: return detail::set_range(r, 1L, 15L, 10L);
-    case ConfigKey::KalmanProcessNoise: return detail::set_range(r, 0L, 100000000L, 400L);
+    case ConfigKey::KalmanProcessNoise: return detail::set_range(r, 1L, 100000000L, 400L);
     case ConfigKey::KalmanMeasurementNoise: return detail::set_range(r, 1L, 100000000L, 2500L);
     case ConfigKey::AlarmLatch: return detail::set_range(r, 0L, 1L, 1L);
     case ConfigKey::ChannelRole0: break;  // handled above

@@ -453,7 +453,8 @@ void register_set_speed(CLI::App& app) {
   };
   auto a = std::make_shared<A>();
   auto* c = app.add_subcommand("set-speed", "Tell the module the spindle speed its model uses (rpm, or 'tach' to measure it)");
-  c->footer("  btsm set-speed --port /dev/ttyACM0 6000\n  btsm set-speed --ble C8:A0:30:F1:02:03 tach");
+  c->footer("The speed is held in the module's RAM: after a reset it measures the tach input again.\n"
+            "  btsm set-speed --port /dev/ttyACM0 6000\n  btsm set-speed --ble C8:A0:30:F1:02:03 tach");
   add_link_options(*c, a->link);
   c->add_option("speed", a->rpm, "rpm 0..60000, or 'tach' for the tachometer input")->required();
   c->callback([a] {

@@ -108,7 +108,7 @@ void register_residual_commands(CLI::App& app) {
   cmd->add_option("--max-heat-nodes", a->opts.max_heat_nodes, "Heat effects are tried at this many nodes with the most traced heat (default 2)");
   cmd->add_option("--max-sensor-columns", a->opts.max_sensor_columns, "sensor_lag is tried on this many columns (default 2)");
   cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations per screening fit (default 60)");
-  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations for refining the best candidate (default 600)");
+  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations for refining the best candidates and for the base fit (default 600)");
   cmd->add_option("--trace-step", a->opts.trace_step_s, "Step of the unexplained-heat trace [s] (default max(60 s, 10 samples))");
   cmd->add_option("--report", a->report_dir, "Write residual_result.json, residual_table.txt and plots (PNG + SVG) here");
   cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");

@@ -87,7 +87,7 @@ void add_direction(CLI::App& rtd, const char* name, const char* help, Direction 
   CLI::App* cmd = rtd.add_subcommand(name, help);
   cmd->add_option("--r0", opts->r0_ohm, "resistance at 0 degC in ohm (100 = Pt100, 1000 = Pt1000)")
       ->capture_default_str();
-  cmd->add_flag("--json", opts->json, "print {r0_ohm, standard, results:[{input, output}]} as JSON");
+  cmd->add_flag("--json", opts->json, "print {r0_ohm, standard, results:[{resistance_ohm, temperature_c}]} as JSON");
   cmd->add_option("values", opts->values,
                   dir == Direction::kResistanceToTemperature
                       ? "resistances in ohm"

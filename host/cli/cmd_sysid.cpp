@@ -43,6 +43,7 @@ std::vector<Recording> read_all(const std::vector<std::string>& files) {
 struct FitArgs {
   std::vector<std::string> recordings;
   std::string preset, network, out, initial = "estimate";
+  std::vector<std::string> columns;
   double sum_c = std::nan("");
   bool json_out = false, joint_only = false;
 };
@@ -52,6 +53,7 @@ void run_fit(const FitArgs& a) {
   try {
     if (!a.preset.empty() == !a.network.empty()) throw CommandError(kExitUsage, "give exactly one of --preset or --network");
     net = a.preset.empty() ? load_network(a.network) : preset_network(a.preset);
+    remap_measurements(net, a.columns);
   } catch (const CommandError&) {
     throw;
   } catch (const std::exception& e) {
@@ -319,11 +321,14 @@ void register_sysid_commands(CLI::App& app) {
         "parameters on the warm-ups, then a joint fit. The per-recording initial states are estimated.\n"
         "The scale gauge (C, G, Q -> kC, kG, kQ) is fixed by --sum-c or the network's sum_capacitance_J_per_K, or by\n"
         "fixed parameters. Output: model JSON with values, units, 1 sigma, identifiability, fit metrics.\n"
-        "Example: btsm fit warmup_*.csv --preset spindle4 --sum-c 20478.7 --out model.json");
+        "Example: btsm fit warmup_*.csv --preset spindle4 --sum-c 20478.7 --out model.json\n"
+        "A module recording with the default roles has T1,T2,T3 and T5 (ch4 is ambient): with the fifth probe on the\n"
+        "shaft end, add --column shaft=T5 (the model JSON keeps the mapping for validate, reduce and heat).");
     c->add_option("recordings", a->recordings, "Recording CSV files (time_s,speed_rpm,ambient_c,T1..)")->required()->check(CLI::ExistingFile);
     c->add_option("--preset", a->preset, "Built-in network: spindle4 (Lo, Hu & Chang 2018)");
     c->add_option("--network", a->network, "Network description JSON (see README: Network JSON)")->check(CLI::ExistingFile);
     c->add_option("--sum-c", a->sum_c, "Known total heat capacity sum C_i in J/K (scale gauge)")->check(CLI::PositiveNumber);
+    c->add_option("--column", a->columns, "NODE=COLUMN: which recording column measures a node (repeatable; NODE= drops it)");
     c->add_option("--out", a->out, "Model JSON to write")->required();
     c->add_option("--initial", a->initial, "Initial state per recording: estimate (default) or first (first samples)")
         ->check(CLI::IsMember({"estimate", "first"}));

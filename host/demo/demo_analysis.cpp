@@ -30,8 +30,7 @@ namespace {
 // the paper's network (the fit then leaves it to the output error alone and crawls).
 thermal::Network demo_network() {
   thermal::Network net = thermal::preset_network("spindle4");
-  for (auto& m : net.measurements)
-    if (m.column == "T4") m.column = "T5";
+  thermal::remap_measurements(net, {"shaft=T5"});  // as `btsm fit --column shaft=T5`
   return net;
 }
 

@@ -7,7 +7,9 @@
 //   * BIC on the fit recordings drops by at least `bic_margin` (parameters counted: free model
 //     parameters + effect parameters + initial states),
 //   * the check-recording RMSE improves by at least `check_improvement` (ratio before/after),
-//   * the effect's key parameter differs from its "no effect" value by >= `param_z` sigma.
+//   * the effect's key parameter differs from its "no effect" value by >= `param_z` sigma,
+//   * with the effect, the check RMSE is at most `max_check_to_fit_ratio` x the fit RMSE (the
+//     effect explains the check residual, not just a part of it).
 // Among the claimed effects the one with the lowest check RMSE wins (BIC breaks ties).
 #include "host/residual/effects.hpp"
 #include "host/residual/residual_stats.hpp"
@@ -27,6 +29,7 @@ struct LoopOptions {
   double bic_margin = 10.0;          // required BIC decrease on the fit recordings
   double check_improvement = 1.25;   // required ratio check RMSE before / after
   double param_z = 3.0;              // required |key parameter| / sigma
+  double max_check_to_fit_ratio = 5.0;  // after the effect, check RMSE must be <= this x fit RMSE
   double whiteness_p = 0.01;         // Ljung-Box level (Bonferroni-corrected over channels)
   double significant_rms_factor = 2.0;  // residual rms above this x noise sigma = significant structure
   double correlation_p = 1e-3;       // a candidate signal is "correlated" below this p-value
@@ -37,7 +40,7 @@ struct LoopOptions {
   double trace_step_s = 0;           // inverse-heat step for the trace; 0 = max(60 s, 10 samples)
   int max_iterations = 60;           // Levenberg-Marquardt iterations per screening fit
   int refine_candidates = 2;         // the best candidates (by BIC gain) are then refined ...
-  int refine_iterations = 600;       // ... with this many iterations
+  int refine_iterations = 600;       // ... with this many iterations (also the base fit's budget)
   std::function<void(const std::string&)> progress;
 };
 

@@ -344,6 +344,28 @@ Network load_network(const std::string& path) {
 
 std::vector<std::string> preset_names() { return {"spindle4"}; }
 
+void remap_measurements(Network& net, const std::vector<std::string>& specs) {
+  for (const std::string& spec : specs) {
+    const auto eq = spec.find('=');
+    if (eq == std::string::npos || eq == 0)
+      throw std::invalid_argument("--column '" + spec + "': expected NODE=COLUMN, e.g. shaft=T5");
+    const std::string node = spec.substr(0, eq), column = spec.substr(eq + 1);
+    const int k = net.node_index(node);
+    if (k < 0) throw std::invalid_argument("--column '" + spec + "': the network has no node '" + node + "'");
+    std::erase_if(net.measurements, [&](const Measurement& m) { return m.node == k; });
+    if (column.empty()) continue;
+    for (const auto& m : net.measurements)
+      if (m.column == column)
+        throw std::invalid_argument("--column '" + spec + "': column '" + column + "' already measures node '" +
+                                    net.nodes[static_cast<std::size_t>(m.node)].name + "'");
+    Measurement m;
+    m.column = column;
+    m.node = k;
+    net.measurements.push_back(m);
+  }
+  if (net.measurements.empty()) throw std::invalid_argument("--column: no node is measured any more");
+}
+
 Network preset_network(const std::string& name) {
   if (name == "spindle4") return network_from_json(json::parse(kSpindle4Json), "preset spindle4");
   std::string known;

@@ -127,6 +127,10 @@ nlohmann::json network_to_json(const Network& net);
 // Built-in presets: "spindle4" (Lo, Hu & Chang 2018, heat balances A2 + Eq. 21).
 Network preset_network(const std::string& name);
 std::vector<std::string> preset_names();
+// Which recording column measures which node, changed on the command line: each spec is
+// "NODE=COLUMN" (e.g. "shaft=T5" for a module whose ch5 probe sits on the shaft end, or
+// "shaft=" to drop the node's measurement). Throws std::invalid_argument naming the spec.
+void remap_measurements(Network& net, const std::vector<std::string>& specs);
 // Default values: `nominal` where given (the paper's Tables 2/3 for spindle4), else a numeric
 // `initial`, else NaN.
 Eigen::VectorXd default_parameters(const Network& net);

@@ -300,6 +300,17 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
   j["diagnosis"] = {{"warn_band_K", o.warn_K}, {"alarm_band_K", o.alarm_K}, {"abs_limit_c", o.abs_limit_c},
                     {"max_rise_K_per_min", o.max_rise_K_per_min}};
   j["quantization"] = {{"status", model_status_name(r.quantize_status.status)}, {"blob_bytes", r.blob.size()}};
+  if (!r.blob.empty()) {
+    // The blob itself, so `btsm flash-model REDUCED.json` needs no second file.
+    static const char* hex = "0123456789abcdef";
+    std::string h;
+    h.reserve(r.blob.size() * 2);
+    for (uint8_t b : r.blob) {
+      h += hex[b >> 4];
+      h += hex[b & 15];
+    }
+    j["blob_hex"] = h;
+  }
   j["deviation"] = {{"profile", r.deviation.profile},
                     {"profile_hours", r.deviation.profile_hours},
                     {"quantized_vs_full_max_K", r.deviation.quantized_vs_full_max_K},

@@ -8,6 +8,7 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <cstdio>
@@ -155,6 +156,84 @@ TEST(ResidualLoopRealData, FlThermalIsUnexplainedNotMisattributed) {
   EXPECT_NE(std::find(r.nodes.begin(), r.nodes.end(), "column"), r.nodes.end());
   EXPECT_FALSE(r.correlated_signals.empty());
   EXPECT_GE(r.candidates.size(), 5u);
+}
+
+const CandidateResult* candidate(const LoopResult& r, const std::string& label) {
+  for (const auto& c : r.candidates)
+    if (c.label == label) return &c;
+  return nullptr;
+}
+
+// Real data (SJTU motorized spindle warm-up, no licence stated; see
+// tests/data/spindle-sjtu-elongation/README.md): a 4-node network fitted on the 24 h warm-up predicts
+// the 54 h plateau 1 K off (the machine does not follow the room sensor T15 that the network uses as
+// its boundary, and the rear bearing levels off earlier than the fitted slow mode). No effect of the
+// library fixes that; the loop must say "unexplained", not claim one.
+TEST(ResidualLoopRealData, SjtuElongationIsUnexplainedNotMisattributed) {
+  const std::string dir = std::string(BTSM_TEST_DATA_DIR) + "/spindle-sjtu-elongation/";
+  const thermal::Network net = thermal::load_network(dir + "sjtu4_network.json");
+  const std::vector<thermal::Recording> fit = {thermal::read_recording_csv(dir + "sjtu_fit_0-24h.csv")};
+  const std::vector<thermal::Recording> check = {thermal::read_recording_csv(dir + "sjtu_check_24-78h.csv")};
+  const LoopResult r = run_residual_loop(net, Eigen::VectorXd(), fit, check, {});
+  EXPECT_EQ(r.effect, "unexplained") << format_table(r);
+  EXPECT_LT(r.before_fit.rmse_k, 0.4);
+  EXPECT_GT(r.before_check.rmse_k, 0.7);  // 1.06 K: the plateau is not predicted
+  EXPECT_NE(std::find(r.nodes.begin(), r.nodes.end(), "rear"), r.nodes.end());
+  EXPECT_NE(std::find(r.correlated_signals.begin(), r.correlated_signals.end(), "ambient_c"), r.correlated_signals.end());
+  EXPECT_GE(r.candidates.size(), 7u);
+  for (const auto& c : r.candidates) EXPECT_FALSE(c.accepted) << c.label << ": " << c.reason;
+}
+
+// Real data (Incubator DT 2023 calibration run, empty closed box, no licence found; see
+// tests/data/incubator-dt/README.md). The heater input is mapped onto the speed_rpm column as
+// electrical power in W. The 2-node network (the source's own model structure, C_heater fixed at the
+// source's calibration) fits to 0.41 K and predicts the second half to 0.21 K, with a structured,
+// non-white residual (too large a swing in the heater cycles). temperature_dependent_heat@heater
+// improves the check x1.4 but its parameter is not significant (|z| ~ 2); nothing is claimed.
+TEST(ResidualLoopRealData, IncubatorCalibrationIsUnexplained) {
+  const std::string dir = std::string(BTSM_TEST_DATA_DIR) + "/incubator-dt/";
+  const thermal::Network net = thermal::load_network(dir + "incubator2_2023_network.json");
+  const std::vector<thermal::Recording> fit = {thermal::read_recording_csv(dir + "calib2023_fit_0-55min.csv")};
+  const std::vector<thermal::Recording> check = {thermal::read_recording_csv(dir + "calib2023_check_55-111min.csv")};
+  const LoopResult r = run_residual_loop(net, Eigen::VectorXd(), fit, check, {});
+  EXPECT_EQ(r.effect, "unexplained") << format_table(r);
+  EXPECT_TRUE(r.base_fit.converged);
+  EXPECT_LT(r.before_check.rmse_k, 0.3);
+  EXPECT_GT(r.before_check.rmse_k, 0.1);
+  // The box-to-room resistance is the well-identified parameter; the source's own calibration of this
+  // recording found G_box = 0.5763 W/K, i.e. R_box = 1.735 K/W.
+  const int i = net.param_index("R_box");
+  ASSERT_GE(i, 0);
+  EXPECT_NEAR(r.base_fit.params[i], 1.735, 0.1);
+  for (const auto& c : r.candidates) EXPECT_FALSE(c.accepted) << c.label << ": " << c.reason;
+}
+
+// Real data (Incubator DT 2021 lid-opening experiment, no licence found; see
+// tests/data/incubator-dt/README.md): fitted on the 34 min before the first lid opening, checked on
+// the 4.8 h with 7 lid openings and a cup of water. The network has neither, so the check error is
+// large (5.9 K). CURRENT BEHAVIOUR, pinned on purpose: the loop claims temperature_dependent_heat@heater
+// (heater heat falling as the heater warms; fitted 0.8 W/K at 125 W, the order of a copper heat bed's
+// resistance rise, and significant on the lid-free fit part alone), because it trims the model's
+// overshoot after every lid-opening recovery just past the 1.25 check threshold. The lid openings
+// themselves stay unexplained (check RMSE after ~4.6 K, 30x the fit RMSE). If the decision rule is
+// tightened to require that the claimed effect explains most of the check error, this test must change
+// to "unexplained" -- deliberately.
+// The lid openings (and a cup of water) drive the check error; a temperature-dependent heater
+// term trims the overshoot after each opening (check x1.28) but leaves 36x the fit error. That is
+// not an explanation, so the loop must say `unexplained` and still show the partial candidate.
+TEST(ResidualLoopRealData, IncubatorLidOpeningsAreUnexplainedNotClaimedAsAHeaterEffect) {
+  const std::string dir = std::string(BTSM_TEST_DATA_DIR) + "/incubator-dt/";
+  const thermal::Network net = thermal::load_network(dir + "incubator2_2021_network.json");
+  const std::vector<thermal::Recording> fit = {thermal::read_recording_csv(dir + "lid2021_fit_0-34min.csv")};
+  const std::vector<thermal::Recording> check = {thermal::read_recording_csv(dir + "lid2021_check_34-323min.csv")};
+  const LoopResult r = run_residual_loop(net, Eigen::VectorXd(), fit, check, {});
+  EXPECT_EQ(r.effect, "unexplained") << format_table(r);
+  EXPECT_GT(r.before_check.rmse_k, 3.0);
+  const CandidateResult* c = candidate(r, "temperature_dependent_heat@heater");
+  ASSERT_NE(c, nullptr);
+  EXPECT_FALSE(c->accepted);
+  EXPECT_GT(c->check_factor, 1.0);                  // it does trim part of the check error ...
+  EXPECT_GT(c->check.rmse_k, 10.0 * c->fit.rmse_k);  // ... but most of it stays
 }
 
 }  // namespace
