@@ -23,6 +23,7 @@ namespace rs = btsm::residual;
 struct ResidualArgs {
   std::vector<std::string> fit, check;
   std::string preset, network, report_dir, effects;
+  std::vector<std::string> columns;
   bool use_values = false, json = false;
   rs::LoopOptions opts;
 };
@@ -40,6 +41,7 @@ void run_residual(ResidualArgs& a) {
     } else {
       model.network = th::load_network(a.network);
     }
+    th::remap_measurements(model.network, a.columns);
     for (const auto& f : a.fit) fit.push_back(th::read_recording_csv(f));
     for (const auto& f : a.check) check.push_back(th::read_recording_csv(f));
   } catch (const std::exception& e) {
@@ -99,6 +101,7 @@ void register_residual_commands(CLI::App& app) {
   cmd->add_option("--check", a->check, "Recording CSV(s) to score on (not used for fitting)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--preset", a->preset, "Base network preset (spindle4)");
   cmd->add_option("--network", a->network, "Base network JSON (its measured columns must be in every recording)");
+  cmd->add_option("--column", a->columns, "NODE=COLUMN: which recording column measures a node (repeatable; NODE= drops it)");
   cmd->add_flag("--use-values", a->use_values,
                 "Do not refit the base: use the parameter values of --network (a fitted model) and fit only the effects");
   cmd->add_option("--effects", a->effects, "Comma-separated subset of the effect library to try (default: all)");
