@@ -108,7 +108,7 @@ void register_residual_commands(CLI::App& app) {
   cmd->add_option("--bic-margin", a->opts.bic_margin, "BIC decrease an effect must achieve on the fit recordings (default 10)");
   cmd->add_option("--check-improvement", a->opts.check_improvement, "Required ratio check RMSE before/after (default 1.25)");
   cmd->add_option("--param-z", a->opts.param_z, "Required |parameter| / sigma of the effect's key parameter (default 3)");
-  cmd->add_option("--max-heat-nodes", a->opts.max_heat_nodes, "Heat effects are tried at this many nodes with the most traced heat (default 2)");
+  cmd->add_option("--max-heat-nodes", a->opts.max_heat_nodes, "Heat effects are tried at this many nodes with the most traced heat (default 4)");
   cmd->add_option("--max-sensor-columns", a->opts.max_sensor_columns, "sensor_lag is tried on this many columns (default 2)");
   cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations per screening fit (default 60)");
   cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations for refining the best candidates and for the base fit (default 600)");

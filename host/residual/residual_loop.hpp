@@ -33,7 +33,10 @@ struct LoopOptions {
   double whiteness_p = 0.01;         // Ljung-Box level (Bonferroni-corrected over channels)
   double significant_rms_factor = 2.0;  // residual rms above this x noise sigma = significant structure
   double correlation_p = 1e-3;       // a candidate signal is "correlated" below this p-value
-  int max_heat_nodes = 2;            // extra_heat_input tried at the nodes with most traced heat
+  // Heat effects are tried at this many nodes, most traced heat first. Not fewer than a spindle
+  // network has nodes: a base fit that absorbs part of an effect can move the traced heat to the
+  // neighbours (seen: heat into the housing traced to the shaft and the rear bearing).
+  int max_heat_nodes = 4;
   int max_sensor_columns = 2;        // sensor_lag tried on the columns most correlated with their rate
   std::vector<EffectKind> effects;   // empty = the whole library
   bool fit_base = true;              // false: use the given parameter values as the base model

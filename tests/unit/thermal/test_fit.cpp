@@ -74,7 +74,9 @@ TEST(ThermalValidate, SelfAndExternalValidationMeetTheReferenceToolchain) {
       EXPECT_LE(sp.mape_percent, 0.11) << f;
       worst_mape = std::max(worst_mape, sp.mape_percent);
     }
-    if (f != test::kStepwise) EXPECT_EQ(v.steady.size(), 1u) << f;
+    if (f != test::kStepwise) {
+      EXPECT_EQ(v.steady.size(), 1u) << f;
+    }
     if (f == test::kStepwise) {
       // external run against the noise-free truth
       const Recording clean = read_recording_csv(test::ref_dir() + "/clean/" + f);
