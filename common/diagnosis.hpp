@@ -66,6 +66,7 @@ enum DiagReason : uint8_t {
 };
 
 const int32_t kDiagNoValue = -8388608L;  // same code as the wire's kMissing
+const int32_t kDiagMaxRate = 8388607L;   // |rate of rise| clamp, mK/min (the wire's i24)
 
 inline const char* diag_state_name(DiagState s) {
   switch (s) {
@@ -331,17 +332,38 @@ class RiseRate {
     return round_rate(static_cast<float>(t_mK - oldest) / span_min);
   }
 
-  // Same, with the factor per_min = 1 / window span in minutes (per_min_factor(dt_ms())) supplied
-  // by the caller: channels with one sample period share one division per sample instead of one
-  // each (the rate may differ from push() in the last float bit, i.e. by 1 mK/min after rounding
-  // in rare cases).
-  int32_t push_scaled(int32_t t_mK, float per_min) {
-    int32_t oldest;
-    if (!store(t_mK, oldest)) return kDiagNoValue;
-    return round_rate(static_cast<float>(t_mK - oldest) * per_min);
-  }
+  // What push_scaled() needs for one dt: twice the factor per_min = 1 / window span in minutes,
+  // and the largest |window difference| whose rate stays below 2^24 mK/min (a larger one clamps).
+  struct Scale {
+    float twice_per_min;
+    int32_t max_diff;
+  };
   static float per_min_factor(uint16_t dt_ms) {
     return 60000.0f / (static_cast<float>(dt_ms) * static_cast<float>(kWindow - 1));
+  }
+  static Scale scale_for(uint16_t dt_ms) {
+    const float per_min = per_min_factor(dt_ms);
+    Scale s;
+    s.twice_per_min = 2.0f * per_min;
+    s.max_diff = static_cast<int32_t>(16777216.0f / per_min);
+    return s;
+  }
+
+  // Same, with the Scale of dt_ms() supplied by the caller: channels with one sample period share
+  // it, and it only changes with the period (two divisions then, none per sample). The rate is
+  // exactly round_rate(diff * per_min) (diff * twice_per_min is twice that product, exactly), but
+  // the clamp is an integer test of diff and the rounding halves the truncated double in
+  // integers: one multiplication and two conversions, no float comparison or addition. It may
+  // differ from push() (a division) in the last float bit, i.e. by 1 mK/min in rare cases.
+  int32_t push_scaled(int32_t t_mK, const Scale& s) {
+    int32_t oldest;
+    if (!store(t_mK, oldest)) return kDiagNoValue;
+    const int32_t diff = t_mK - oldest;
+    if (diff > s.max_diff) return kDiagMaxRate;
+    if (diff < -s.max_diff) return -kDiagMaxRate;
+    const int32_t twice = static_cast<int32_t>(static_cast<float>(diff) * s.twice_per_min);
+    const int32_t r = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);  // halves away from zero
+    return r > kDiagMaxRate ? kDiagMaxRate : (r < -kDiagMaxRate ? -kDiagMaxRate : r);
   }
   uint16_t dt_ms() const { return dt_ms_; }
 

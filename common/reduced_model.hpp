@@ -527,6 +527,116 @@ inline int32_t lerp_q(int32_t p0, int32_t p1, uint16_t f) {
   if (rem > 0x8000U || (rem == 0x8000U && !negative)) ++r;  // ties away from zero
   return static_cast<int32_t>(r);
 }
+
+// A 64-bit two's-complement value as two 32-bit words, v = hi * 2^32 + lo. step_with works on
+// these instead of int64_t: avr-gcc 5.4 has no inline 64-bit shifts (every shift of an int64 is a
+// bit-serial library loop, ~130 cycles), and even 32-bit shifts by counts that are not multiples
+// of 8 are bit loops; so every shift below is by 8, 16 or 24 bits (register moves) or by at most
+// 6 bits. The arithmetic is exact (the same integers as the int64 form).
+struct Wide {
+  uint32_t lo;
+  int32_t hi;
+};
+
+#if defined(__GNUC__)
+#define BTSM_RM_INLINE inline __attribute__((always_inline))
+#else
+#define BTSM_RM_INLINE inline
+#endif
+
+// a * b exactly. On a little-endian target the int64 product (libgcc's 32x32->64 __mulsidi3 on
+// AVR) is read as its two words through a union -- no shift at all (GCC documents union type
+// punning; on AVR the returned registers already are the two words).
+BTSM_RM_INLINE Wide mul_wide(int32_t a, int32_t b) {
+#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  union {
+    int64_t v;
+    Wide w;
+  } u;
+  u.v = static_cast<int64_t>(a) * b;
+  return u.w;
+#else
+  const int64_t v = static_cast<int64_t>(a) * b;
+  Wide w;
+  w.lo = static_cast<uint32_t>(v);
+  w.hi = static_cast<int32_t>(v >> 32);
+  return w;
+#endif
+}
+
+// round((c x + [running] d 2^20) / 2^24) (= round_shift(.., 24)) for p = c x, when
+// |c x| < 2^54 (|theta| < 1024 K): returns true and stores it; false otherwise.
+//   c x = q 2^24 + r (0 <= r < 2^24: q is a byte move of the words), d 2^20 = (d >> 4) 2^24 +
+//   (d mod 16) 2^20; then value = q 2^24 + r with 0 <= r < 2^24 and the sign of the value is the
+//   sign of q, so rounding half away from zero adds 1 when r > 2^23, or r == 2^23 and q >= 0.
+BTSM_RM_INLINE bool theta_q20(Wide p, int32_t d, bool running, int32_t& out) {
+  if (static_cast<uint32_t>(static_cast<uint32_t>(p.hi) + 0x400000UL) >= 0x800000UL) return false;  // hi outside [-2^22, 2^22)
+  int32_t q = static_cast<int32_t>((static_cast<uint32_t>(p.hi) << 8) | (p.lo >> 24));
+  uint32_t r = p.lo & 0x00FFFFFFUL;
+  if (running) {
+    q += d >> 4;
+    r += static_cast<uint32_t>(static_cast<uint8_t>(static_cast<uint8_t>(d) << 4)) << 16;
+    if (r >= 0x1000000UL) {
+      ++q;
+      r &= 0x00FFFFFFUL;
+    }
+  }
+  if (r > 0x800000UL || (r == 0x800000UL && q >= 0)) ++q;
+  out = q;
+  return true;
+}
+
+// round(t * 1000 / 2^20) = round(t * 125 / 2^17) (= round_shift(t * 1000, 20): the two floors
+// agree because dividing numerator and denominator by 8 moves the -[neg] term by less than 1).
+//   t * 125 = a 2^16 + b (0 <= b < 2^16; a from the high half times 125 plus the carry of the
+//   low half), a = 2 h + a0: value / 2^17 = h + (a0 2^16 + b) / 2^17, sign of the value = sign of a.
+BTSM_RM_INLINE int32_t q20_to_mk(int32_t t) {
+  const uint32_t low = static_cast<uint32_t>(static_cast<uint16_t>(t)) * 125U;  // < 2^23
+  const int32_t a = static_cast<int32_t>(static_cast<int16_t>(static_cast<uint32_t>(t) >> 16)) * 125 +
+                    static_cast<int32_t>(low >> 16);
+  const uint32_t rest = (static_cast<uint32_t>(a & 1) << 16) + static_cast<uint16_t>(low);  // < 2^17
+  const int32_t h = a >> 1;  // floor
+  return h + ((rest > 0x10000UL || (rest == 0x10000UL && a >= 0)) ? 1 : 0);
+}
+
+// saturate<int32>(round((a x + [running] b 2^26) / 2^30)) for p = a x (|a x| <= 2^62).
+//   value = q 2^32 + r (0 <= r < 2^32) with b 2^26 = (b >> 6) 2^32 + (b mod 64) 2^26; then
+//   result = 4 q + floor((r + 2^29 - [q < 0]) / 2^30), that floor in 0..4 (a carry and two bits).
+BTSM_RM_INLINE int32_t next_state_q20(Wide p, int32_t b, bool running) {
+  int32_t q = p.hi;
+  uint32_t r = p.lo;
+  if (running) {
+    q += b >> 6;
+    const uint32_t add = static_cast<uint32_t>(static_cast<uint8_t>(static_cast<uint8_t>(b) << 2)) << 24;
+    r += add;
+    if (r < add) ++q;
+  }
+  if (q >= 0x20000000L) return 0x7FFFFFFFL;       // value >= 2^61: beyond int32
+  if (q < -0x20000000L) return -0x7FFFFFFFL - 1;  // value < -2^61
+  const uint32_t half = q < 0 ? 0x1FFFFFFFUL : 0x20000000UL;
+  const uint32_t t = r + half;
+  const uint8_t carry = static_cast<uint8_t>((t < half ? 4U : 0U) + (static_cast<uint8_t>(t >> 24) >> 6));
+  const uint32_t v = (static_cast<uint32_t>(q) << 2) + carry;
+  if (q >= 0 && static_cast<int32_t>(v) < 0) return 0x7FFFFFFFL;  // 4 q + 4 = 2^31
+  return static_cast<int32_t>(v);
+}
+
+// The channels step_with does not predict: a disabled channel, every channel while the ambient
+// reading is missing (kModelNoPrediction), and the ambient channel (its "prediction" is its own
+// reading). True for those, with their value in `out`; `bit` is 1 << j.
+BTSM_RM_INLINE bool unmodelled_channel(uint8_t j, uint8_t bit, uint8_t enabled_mask, uint8_t ambient_channel,
+                                       int32_t ambient_mK, int32_t& out) {
+  if ((enabled_mask & bit) == 0 || ambient_mK == kModelNoPrediction) {
+    out = kModelNoPrediction;
+    return true;
+  }
+  if (j == ambient_channel) {
+    out = ambient_mK;
+    return true;
+  }
+  return false;
+}
+
 }  // namespace detail_rm
 
 // Coefficients at one speed (linear interpolation between two breakpoints, see header).
@@ -551,41 +661,42 @@ inline void reset(ReducedModelState& st) { st.x_q20 = 0; }
 // EEPROM itself). Writes predicted temperatures (mK, degC*1000) for every channel, then advances
 // the state. ambient_mK == kModelNoPrediction -> all predictions kModelNoPrediction (the state
 // still advances: it is relative to ambient).
+//
+// Bit-identical to forming every product exactly in int64 and rounding it once (round_shift)
+// while |c x| < 1024 K (beyond, which no real temperature reaches, the prediction saturates):
+// tests/unit/common_numeric compares it with that int64 form on random states and coefficients.
+// The sums and roundings work on the 32-bit words of the products (detail_rm::Wide) with byte-move
+// shifts: on the AVR the int64 form spent ~5k cycles per step in libgcc's bit-serial 64-bit
+// shifts (__ashrdi3/__lshrdi3/__ashldi3).
 inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_channel,
                       uint8_t enabled_mask, ReducedModelState& st, int32_t ambient_mK,
                       int32_t predicted_mK[kModelChannels]) {
-  using detail_rm::round_shift;
+  using namespace detail_rm;
   const int32_t x = st.x_q20;
-  for (uint8_t j = 0; j < kModelChannels; ++j) {
-    if (((enabled_mask >> j) & 1U) == 0 || ambient_mK == kModelNoPrediction) {
-      predicted_mK[j] = kModelNoPrediction;
-      continue;
-    }
-    if (j == ambient_channel) {
-      predicted_mK[j] = ambient_mK;
-      continue;
-    }
+  // Beyond +-2^30 mK any ambient + theta (|theta| < 2^21 mK here) ends up clamped to the wire's
+  // range anyway, so clamping the ambient first changes nothing and keeps the sums in 32 bits.
+  const int32_t amb = ambient_mK > 0x40000000L ? 0x40000000L : (ambient_mK < -0x40000000L ? -0x40000000L : ambient_mK);
+  uint8_t bit = 1;
+  for (uint8_t j = 0; j < kModelChannels; ++j, bit = static_cast<uint8_t>(bit << 1)) {
+    if (unmodelled_channel(j, bit, enabled_mask, ambient_channel, ambient_mK, predicted_mK[j])) continue;
     // theta (Q44) = c (Q24) * x (Q20) + d (Q24) * u * 2^20; |theta| < 2^62 by the Q ranges.
-    int64_t theta_q44 = static_cast<int64_t>(p.c_q24[j]) * x;
-    if (running) theta_q44 += static_cast<int64_t>(p.d_q24[j]) * static_cast<int32_t>(fx::pow2(kStateFracBits));
-    const int64_t theta_q20 = round_shift(theta_q44, kGainFracBits);
-    // |theta_q20| < 2^31 in practice (2048 K): one widening multiply then, else the 64-bit one.
-    const int64_t theta_q20_1000 = theta_q20 == static_cast<int32_t>(theta_q20)
-                                       ? static_cast<int64_t>(static_cast<int32_t>(theta_q20)) * 1000
-                                       : theta_q20 * 1000;
-    const int64_t theta_mK = round_shift(theta_q20_1000, kStateFracBits);
-    // Keep the result inside the wire's i24 range and off the kMissing code.
-    int64_t v = static_cast<int64_t>(ambient_mK) + theta_mK;
-    if (v > kInt24Max) v = kInt24Max;
-    if (v <= kModelNoPrediction) v = kModelNoPrediction + 1;
-    predicted_mK[j] = static_cast<int32_t>(v);
+    const Wide cx = mul_wide(p.c_q24[j], x);
+    int32_t t_q20;
+    int32_t v;
+    if (theta_q20(cx, p.d_q24[j], running, t_q20)) {
+      v = amb + q20_to_mk(t_q20);
+      // Keep the result inside the wire's i24 range and off the kMissing code.
+      if (v > kInt24Max) v = kInt24Max;
+      if (v <= kModelNoPrediction) v = kModelNoPrediction + 1;
+    } else {
+      // |c x| >= 1024 K: no temperature a probe can have (validated models keep |c x_ss + d| <=
+      // 1000 K); the prediction saturates at the end of the wire's range on that side.
+      v = cx.hi < 0 ? kModelNoPrediction + 1 : kInt24Max;
+    }
+    predicted_mK[j] = v;
   }
-  // x' = a x + b u, one rounding from Q50.
-  int64_t acc_q50 = static_cast<int64_t>(p.a_q30) * x;
-  if (running)
-    acc_q50 += static_cast<int64_t>(p.b_q24) *
-               static_cast<int32_t>(fx::pow2(kPoleFracBits + kStateFracBits - kGainFracBits));
-  st.x_q20 = fx::saturate<int32_t>(round_shift(acc_q50, kPoleFracBits));
+  // x' = a x + b u, one rounding from Q50, saturated to int32 (as fx::saturate).
+  st.x_q20 = next_state_q20(mul_wide(p.a_q30, x), p.b_q24, running);
 }
 
 // One sample of the model at spindle speed `speed_rpm` (see the header for the definition).

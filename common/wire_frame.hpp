@@ -147,6 +147,71 @@ inline bool resume_frame(Put& put, FrameCursor& c, uint8_t type, uint8_t seq, co
   return done;
 }
 
+// Raw-buffer encoder (the MCU's): the message encoder writes the payload straight into
+// raw + kHeaderSize of a kMaxRawFrame buffer, seal_raw_frame() adds the header and the CRC in
+// place (one tight CRC pass), and resume_stuffed() streams FLAG, the stuffed raw bytes, FLAG into
+// a sink that may refuse bytes (the UART ring), continuing where it stopped on the next call:
+//   n = seal_raw_frame(raw, type, seq, len); StuffCursor c; start_stuffed(c);
+//   until resume_stuffed(put, c, raw, n) returns true   (raw unchanged meanwhile)
+// Same wire bytes as write_frame; per byte a load, the escape test and the sink call (on the AVR
+// ~45 cycles a byte with the ring write, against ~77 for resume_frame's per-byte dispatch and CRC).
+// Returns the raw size (header + len + CRC), or 0 if len > kMaxPayload.
+inline uint8_t seal_raw_frame(uint8_t* raw, uint8_t type, uint8_t seq, uint8_t len) {
+  if (len > kMaxPayload) return 0;
+  raw[0] = kProtocolVersion;
+  raw[1] = type;
+  raw[2] = seq;
+  raw[3] = len;
+  const uint8_t body = static_cast<uint8_t>(kHeaderSize + len);
+  const uint16_t crc = crc16_ccitt(raw, body);
+  raw[body] = static_cast<uint8_t>(crc);
+  raw[body + 1] = static_cast<uint8_t>(crc >> 8);
+  return static_cast<uint8_t>(body + kCrcSize);
+}
+
+struct StuffCursor {
+  uint8_t pos;   // 0 = opening flag, 1..n = raw byte pos - 1, n + 1 = closing flag
+  bool escaped;  // the ESC of raw byte pos - 1 is already out, its second byte is not
+};
+
+inline void start_stuffed(StuffCursor& c) {
+  c.pos = 0;
+  c.escaped = false;
+}
+
+// Returns true once the closing flag is out.
+template <class Put>
+inline bool resume_stuffed(Put& put, StuffCursor& c, const uint8_t* raw, uint8_t n) {
+  uint8_t pos = c.pos;
+  bool escaped = c.escaped;
+  bool done = false;
+  if (pos == 0) {
+    if (!put(kFlag)) return false;
+    pos = 1;
+  }
+  for (;;) {
+    if (pos > n) {
+      done = put(kFlag);
+      if (done) ++pos;
+      break;
+    }
+    uint8_t b = raw[pos - 1];
+    if (needs_escape(b)) {
+      if (!escaped) {
+        if (!put(kEsc)) break;
+        escaped = true;
+      }
+      b = static_cast<uint8_t>(b ^ kEscXor);
+    }
+    if (!put(b)) break;
+    escaped = false;
+    ++pos;
+  }
+  c.pos = pos;
+  c.escaped = escaped;
+  return done;
+}
+
 // Builds the raw (unstuffed) frame with an explicit version into raw (>= kMaxRawFrame bytes).
 // Returns the raw size, or 0 if len > kMaxPayload.
 inline size_t build_raw_frame(uint8_t version, uint8_t type, uint8_t seq, const uint8_t* payload,

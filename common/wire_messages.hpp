@@ -398,20 +398,29 @@ inline void copy_bytes(uint8_t* dst, const uint8_t* src, uint8_t n) {
 }
 }  // namespace detail
 
-inline uint8_t encode_sample(const Sample& m, uint8_t* p) {
-  if ((m.overall & kOverallReservedMask) != 0) return 0;
+// The SAMPLE layout from separate fields (the firmware writes its own arrays this way, without a
+// Sample copy); encode_sample() is this with a Sample's fields.
+inline uint8_t encode_sample_fields(uint32_t sample_index, uint32_t time_ms, uint16_t speed_rpm,
+                                    const int32_t* temp_mK, const uint8_t* channel_status,
+                                    const int32_t* predicted_mK, uint8_t overall, uint8_t* p) {
+  if ((overall & kOverallReservedMask) != 0) return 0;
   for (uint8_t i = 0; i < kChannels; ++i) {
-    if (!detail::i24_fits(m.temp_mK[i]) || !detail::i24_fits(m.predicted_mK[i])) return 0;
+    if (!detail::i24_fits(temp_mK[i]) || !detail::i24_fits(predicted_mK[i])) return 0;
   }
-  put_le32(p, m.sample_index);
-  put_le32(p + 4, m.time_ms);
-  put_le16(p + 8, m.speed_rpm);
+  put_le32(p, sample_index);
+  put_le32(p + 4, time_ms);
+  put_le16(p + 8, speed_rpm);
   uint8_t* q = p + 10;
-  for (uint8_t i = 0; i < kChannels; ++i, q += 3) put_le24(q, m.temp_mK[i]);
-  for (uint8_t i = 0; i < kChannels; ++i) *q++ = m.channel_status[i];
-  for (uint8_t i = 0; i < kChannels; ++i, q += 3) put_le24(q, m.predicted_mK[i]);
-  *q = m.overall;
+  for (uint8_t i = 0; i < kChannels; ++i, q += 3) put_le24(q, temp_mK[i]);
+  for (uint8_t i = 0; i < kChannels; ++i) *q++ = channel_status[i];
+  for (uint8_t i = 0; i < kChannels; ++i, q += 3) put_le24(q, predicted_mK[i]);
+  *q = overall;
   return kSampleSize;
+}
+
+inline uint8_t encode_sample(const Sample& m, uint8_t* p) {
+  return encode_sample_fields(m.sample_index, m.time_ms, m.speed_rpm, m.temp_mK, m.channel_status, m.predicted_mK,
+                              m.overall, p);
 }
 
 inline bool decode_sample(const uint8_t* p, uint8_t len, Sample& m) {

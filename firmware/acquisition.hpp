@@ -319,7 +319,7 @@ class Acquisition {
     const uint32_t margin = kRailMarginCodes;
     r.r_ohm = 0.0f;
     RatioStatus rs = RatioStatus::kOk;
-    if (!(setup_.r_ref_ohm > 0.0f)) {
+    if (!ref_ok_) {
       rs = RatioStatus::kBadConfig;
     } else if (status & ad7794::kStatusErr) {
       rs = RatioStatus::kAdcError;
@@ -373,11 +373,13 @@ class Acquisition {
   // R_ref / (2^24 G): ohms per code (exact: R_ref scaled by a power of two).
   void update_scale() {
     ohm_per_code_ = setup_.r_ref_ohm * raw_ratio<float>(1, ad7794::gain_of_code(setup_.gain_code), false);
+    ref_ok_ = setup_.r_ref_ohm > 0.0f;  // checked once here, not per reading
   }
 
   Ad7794<Spi> adc_;
   AcquisitionSetup setup_;
   float ohm_per_code_;
+  bool ref_ok_;
   AdcCalibration cal_[kChannels];
   ChannelReading readings_[kChannels];
   AcquisitionCounters counters_;

@@ -107,21 +107,25 @@ class Ad7794 {
   }
 
  private:
+  // Unrolled by width (1..3): between two bytes only the next byte's register move, so the SPI
+  // runs back to back (a loop added ~10 cycles of index/shift bookkeeping after every byte).
   BTSM_NOINLINE uint32_t read_selected(uint8_t reg, uint8_t width) {
     spi_.transfer(ad7794::comm_read(reg));
-    uint32_t v = 0;
-    for (uint8_t i = 0; i < width; ++i) v = (v << 8) | spi_.transfer(0x00);
-    return v;
+    const uint8_t b0 = spi_.transfer(0x00);
+    if (width == 1) return b0;
+    const uint8_t b1 = spi_.transfer(0x00);
+    if (width == 2) return static_cast<uint16_t>(static_cast<uint16_t>(b0) << 8 | b1);
+    const uint8_t b2 = spi_.transfer(0x00);
+    return static_cast<uint32_t>(b0) << 16 | static_cast<uint16_t>(static_cast<uint16_t>(b1) << 8 | b2);
   }
 
-  // width 1..3 (every AD7794 register is at most 24 bits), most significant byte first. The bytes are split with constant shifts (plain register moves):
-  // `value >> (8 * (i - 1))` is a variable 32-bit shift, a bit-by-bit loop of ~100 cycles per byte
-  // on AVR.
+  // width 1..3 (every AD7794 register is at most 24 bits), most significant byte first. The bytes
+  // are split with constant shifts (plain register moves).
   BTSM_NOINLINE void write_selected(uint8_t reg, uint32_t value, uint8_t width) {
-    const uint8_t bytes[3] = {static_cast<uint8_t>(value), static_cast<uint8_t>(value >> 8),
-                              static_cast<uint8_t>(value >> 16)};
     spi_.transfer(ad7794::comm_write(reg));
-    for (uint8_t i = width; i > 0; --i) spi_.transfer(bytes[i - 1]);
+    if (width >= 3) spi_.transfer(static_cast<uint8_t>(value >> 16));
+    if (width >= 2) spi_.transfer(static_cast<uint8_t>(value >> 8));
+    spi_.transfer(static_cast<uint8_t>(value));
   }
 
   Spi& spi_;

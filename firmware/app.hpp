@@ -157,7 +157,11 @@ class App {
     kp.process_noise_k2_per_s = static_cast<float>(config_.kalman_q) * 1e-6f;
     kp.measurement_noise_k = sqrtf(static_cast<float>(config_.kalman_r)) * 1e-3f;
     kp.dt_s = static_cast<float>(config_.sample_period_ms) * 0.001f;
-    for (uint8_t j = 0; j < kChannels; ++j) kalman_[j].configure(kp);
+    // Once settled, an update is a subtraction, a comparison and a multiply-add (no division);
+    // the transient after a reset or a rejection runs the full update (common/kalman.hpp).
+    kp.steady_state_gain = true;
+    kalman_setup_.configure(kp);
+    for (uint8_t j = 0; j < kChannels; ++j) kalman_[j].reset();
     board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
     diagnosis_.configure(config_.alarm_latch != 0);
   }
@@ -185,12 +189,16 @@ class App {
 
   // ---- measurement pipeline -----------------------------------------------------------------
   void process_sweep(uint32_t now) {
-    // The channels' filters share their parameters, and normally their variance: one gain
-    // computation (a float division) serves all five (exact, see common/kalman.hpp).
+    // The channels' filters share their parameters, and while they settle normally also their
+    // variance: one gain computation (a float division) serves all five (exact, see
+    // common/kalman.hpp). Settled filters use the precomputed steady-state gain.
     KalmanGainMemo<float> memo;
     for (uint8_t j = 0; j < kChannels; ++j) process_channel(j, memo);
     update_speed();
-    run_model(now);
+    // The model advances on the sweeps' schedule (drift-free start times), not on the moment the
+    // sweep finished: conversion timing jitters by a tick or two, and with dt equal to the sample
+    // period a late sweep followed by an early one stepped twice and then not at all.
+    run_model(sweep_time_ms_);
     diagnosis_.evaluate(store_.active() ? model_.limits : 0, temp_mK_, predicted_mK_, status_, config_.roles,
                         static_cast<uint32_t>(now - last_sweep_eval_ms_));
     last_sweep_eval_ms_ = now;
@@ -210,22 +218,25 @@ class App {
     const ChannelReading& r = acq_.reading(j);
     faults = r.faults;
     if (faults == 0) {
-      // Constant coefficients: with LTO the coefficient check and range limits of the inverse
-      // fold to constants here (nothing is re-checked per reading, and nothing needs RAM).
-      const RtdResult<float> t = rtd_temperature<float>(iec60751<float>(1000.0f), r.r_ohm);
+      // IEC 60751 Pt1000: the table inverse (no division, no square root) over -118...275 degC,
+      // the exact inverse beyond (common/rtd.hpp); its constant coefficients fold with LTO.
+      const RtdResult<float> t = pt1000_temperature_fast(r.r_ohm);
       if (!t.ok()) {
         faults = t.status == RtdStatus::kBelowRange ? wire::kFaultShort : wire::kFaultOpen;
       } else {
-        const KalmanOutcome o = kalman_[j].update(t.value, &memo);
+        const KalmanOutcome o = kalman_[j].update(kalman_setup_, t.value, &memo);
         if (o == KalmanOutcome::kRejected) {
           faults |= wire::kFaultKalmanReject;
           if (kalman_rejects_ != 0xFFFF) ++kalman_rejects_;
         }
-        // Nearest mK, halves away from zero: truncate 2000 est (exactly twice est * 1000 in
-        // float), then halve in integers -- one float multiplication and conversion instead of a
-        // multiplication, a comparison, an addition and a conversion.
-        const int32_t twice = static_cast<int32_t>(kalman_[j].estimate() * 2000.0f);
-        t_mK = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);
+        // Nearest mK. An unusable filter (parameters out of its domain; the configuration
+        // ranges exclude that) reports the unfiltered temperature rather than its empty estimate.
+        if (o == KalmanOutcome::kInvalid) {
+          const int32_t twice = static_cast<int32_t>(t.value * 2000.0f);
+          t_mK = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);
+        } else {
+          t_mK = kalman_[j].estimate_mk();
+        }
       }
     }
     const uint8_t hard_faults = faults & static_cast<uint8_t>(~wire::kFaultKalmanReject);
@@ -248,7 +259,7 @@ class App {
     }
   }
 
-  void run_model(uint32_t now) {
+  void run_model(uint32_t now /* the sweep's start */) {
     if (!store_.active()) {
       for (uint8_t j = 0; j < kChannels; ++j) predicted_mK_[j] = wire::kMissing;
       model_last_step_ms_ = now;
@@ -287,18 +298,20 @@ class App {
     BTSM_ALWAYS_INLINE bool operator()(uint8_t b) { return board->serial.write(b); }
   };
 
+  // The payload encoders write into the frame buffer behind the header (out_payload()), so the
+  // raw frame is contiguous: wire::seal_raw_frame adds header and CRC in place.
+  uint8_t* out_payload() { return out_frame_ + wire::kHeaderSize; }
+
   BTSM_NOINLINE void queue_frame(wire::MsgType type, uint8_t seq, uint8_t len) {
-    out_type_ = wire::type_code(type);
-    out_seq_ = seq;
-    out_len_ = len;
-    wire::start_frame(out_cursor_);
+    out_len_ = wire::seal_raw_frame(out_frame_, wire::type_code(type), seq, len);
+    wire::start_stuffed(out_cursor_);
     out_pending_ = true;
     flush_output();
   }
 
   // Streams the pending frame into the UART ring; when the ring fills up the cursor remembers
-  // where it stopped and the next poll continues from there (wire::resume_frame), so frames
-  // larger than the ring need no extra buffer and nothing is encoded or checksummed twice.
+  // where it stopped and the next poll continues from there (wire::resume_stuffed), so frames
+  // larger than the ring need no second buffer and nothing is encoded or checksummed twice.
   // Inline test, out-of-line work: poll() calls this twice, and with -mcall-prologues an
   // out-of-line call that finds nothing to do still costs ~70 cycles of register saving.
   void flush_output() {
@@ -306,7 +319,7 @@ class App {
   }
   BTSM_NOINLINE void continue_output() {
     SerialPut put = {&board_};
-    if (wire::resume_frame(put, out_cursor_, out_type_, out_seq_, out_payload_, out_len_)) out_pending_ = false;
+    if (wire::resume_stuffed(put, out_cursor_, out_frame_, out_len_)) out_pending_ = false;
   }
 
   BTSM_NOINLINE void send_ack(uint8_t seq, uint8_t type, wire::Nack status, uint16_t detail) {
@@ -315,7 +328,7 @@ class App {
     a.acked_type = type;
     a.status = static_cast<uint8_t>(status);
     a.detail = detail;
-    queue_frame(wire::MsgType::Ack, seq, wire::encode_ack(a, out_payload_));
+    queue_frame(wire::MsgType::Ack, seq, wire::encode_ack(a, out_payload()));
   }
 
   void send_deferred_ack() {
@@ -333,22 +346,18 @@ class App {
     if (ack_after_write_) send_deferred_ack();
   }
 
+  // Encodes straight from the pipeline's arrays into the frame buffer (no Sample copy).
   BTSM_NOINLINE void build_sample() {
-    wire::Sample s;
-    s.sample_index = sample_index_++;
-    s.time_ms = sweep_time_ms_ - start_ms_;
-    s.speed_rpm = speed_rpm_;
-    for (uint8_t j = 0; j < kChannels; ++j) {
-      s.temp_mK[j] = temp_mK_[j];
-      s.predicted_mK[j] = predicted_mK_[j];
-      s.channel_status[j] = static_cast<uint8_t>(status_[j] | diagnosis_.state(j));
-    }
-    s.overall = diagnosis_.overall();
-    if (diagnosis_.alarm_latched()) s.overall |= wire::kOverallAlarmLatched;
-    if (store_.active()) s.overall |= wire::kOverallModelActive;
-    if (speed_from_tach_) s.overall |= wire::kOverallSpeedFromTach;
-    const uint8_t len = wire::encode_sample(s, out_payload_);
-    if (len != 0) queue_frame(wire::MsgType::Sample, static_cast<uint8_t>(s.sample_index), len);
+    uint8_t status[kChannels];
+    for (uint8_t j = 0; j < kChannels; ++j) status[j] = static_cast<uint8_t>(status_[j] | diagnosis_.state(j));
+    uint8_t overall = diagnosis_.overall();
+    if (diagnosis_.alarm_latched()) overall |= wire::kOverallAlarmLatched;
+    if (store_.active()) overall |= wire::kOverallModelActive;
+    if (speed_from_tach_) overall |= wire::kOverallSpeedFromTach;
+    const uint32_t index = sample_index_++;
+    const uint8_t len = wire::encode_sample_fields(index, sweep_time_ms_ - start_ms_, speed_rpm_, temp_mK_, status,
+                                                   predicted_mK_, overall, out_payload());
+    if (len != 0) queue_frame(wire::MsgType::Sample, static_cast<uint8_t>(index), len);
   }
 
   // ---- input --------------------------------------------------------------------------------
@@ -407,7 +416,7 @@ class App {
         if (!wire::decode_get_config(p, len, m) || !config_.get(m.key, v.value))
           return send_ack(seq, type, wire::Nack::BadValue, p[0]);
         v.key = m.key;
-        queue_frame(wire::MsgType::Config, seq, wire::encode_config(v, out_payload_));
+        queue_frame(wire::MsgType::Config, seq, wire::encode_config(v, out_payload()));
         return;
       }
       case wire::MsgType::AckAlarm:
@@ -441,7 +450,7 @@ class App {
         d.offset = m.offset;
         d.len = m.len;
         for (uint8_t i = 0; i < m.len; ++i) d.data[i] = store_.read_active_byte(static_cast<uint16_t>(m.offset + i));
-        queue_frame(wire::MsgType::ModelData, seq, wire::encode_model_data(d, out_payload_));
+        queue_frame(wire::MsgType::ModelData, seq, wire::encode_model_data(d, out_payload()));
         return;
       }
       case wire::MsgType::Reboot:
@@ -483,7 +492,7 @@ class App {
     m.sensor_faults = sensor_faults_;
     m.resets = resets_;
     m.watchdog_resets = watchdog_resets_;
-    queue_frame(wire::MsgType::Info, seq, wire::encode_info(m, out_payload_));
+    queue_frame(wire::MsgType::Info, seq, wire::encode_info(m, out_payload()));
   }
 
   void model_begin(uint8_t seq, uint8_t type, const uint8_t* p, uint8_t len, uint32_t now) {
@@ -510,7 +519,7 @@ class App {
                                       rec + device_key::kOffsetKey, static_cast<uint8_t>(device_key::kKeySize));
     secure_zero(rec, sizeof rec);
     if (r != wire::Nack::Ok) return send_ack(seq, type, r, r == wire::Nack::BadLength ? eeprom_layout::kBlobSize : 0);
-    queue_frame(wire::MsgType::AuthChallenge, seq, wire::encode_auth_challenge(ch, out_payload_));
+    queue_frame(wire::MsgType::AuthChallenge, seq, wire::encode_auth_challenge(ch, out_payload()));
   }
 
   Board& board_;
@@ -520,14 +529,15 @@ class App {
   FirmwareConfig config_;
   ModelRuntime model_;
   ReducedModelState model_state_;
-  ScalarKalman<float> kalman_[kChannels];
+  KalmanSetup<float> kalman_setup_;
+  KalmanChannel<float> kalman_[kChannels];
   DiagnosisStage diagnosis_;
   // Set in init() (an initialiser image would sit in SRAM on AVR).
   int32_t temp_mK_[kChannels];
   int32_t predicted_mK_[kChannels];
   uint8_t status_[kChannels];
-  uint8_t out_payload_[wire::kMaxPayload];
-  wire::FrameCursor out_cursor_;
+  uint8_t out_frame_[wire::kMaxRawFrame];  // raw frame being sent: header, payload, CRC
+  wire::StuffCursor out_cursor_;
   uint32_t start_ms_ = 0;
   uint32_t next_sweep_ms_ = 0;
   uint32_t sweep_time_ms_ = 0;
@@ -543,9 +553,7 @@ class App {
   uint16_t watchdog_resets_ = 0;
   uint16_t kalman_rejects_ = 0;
   uint16_t sensor_faults_ = 0;
-  uint8_t out_type_ = 0;
-  uint8_t out_seq_ = 0;
-  uint8_t out_len_ = 0;
+  uint8_t out_len_ = 0;  // raw frame size
   uint8_t deferred_seq_ = 0;
   uint8_t deferred_type_ = 0;
   uint8_t reset_cause_ = 0;

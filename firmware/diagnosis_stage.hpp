@@ -31,7 +31,7 @@ class DiagnosisStage {
   BTSM_NOINLINE void evaluate(const ChannelLimits* limits, const int32_t* temp_mK, const int32_t* predicted_mK,
                               const uint8_t* fault_bits, const uint8_t* roles, uint32_t dt_ms) {
     mask_ = 0;
-    Sweep sw = {limits, temp_mK, predicted_mK, fault_bits, roles, dt_ms, 0.0f, 0};
+    Sweep sw = {limits, temp_mK, predicted_mK, fault_bits, roles, dt_ms};
     for (uint8_t j = 0; j < kChannels; ++j) evaluate_channel(j, sw);
   }
 
@@ -64,10 +64,6 @@ class DiagnosisStage {
     const uint8_t* fault_bits;
     const uint8_t* roles;
     uint32_t dt_ms;
-    // One division for all channels (they share the sample period): 1 / rise window in minutes,
-    // recomputed only for a channel whose window dt differs (per_min_dt = 0: none yet).
-    float per_min;
-    uint16_t per_min_dt;
   };
 
   // One channel out of line: inlined into the channel loop the body ran out of registers and
@@ -95,11 +91,13 @@ class DiagnosisStage {
       rise_[j].reset();
       in.rise_mK_per_min = kDiagNoValue;
     } else {
-      if (rise_[j].dt_ms() != sw.per_min_dt) {
-        sw.per_min_dt = rise_[j].dt_ms();
-        sw.per_min = RiseRate<kRiseWindow>::per_min_factor(sw.per_min_dt);
+      // The channels share the sample period: the scale (two divisions) is computed when the
+      // window dt changes, not per sample or per channel (scale_dt_ = 0: none yet).
+      if (rise_[j].dt_ms() != scale_dt_) {
+        scale_dt_ = rise_[j].dt_ms();
+        scale_ = RiseRate<kRiseWindow>::scale_for(scale_dt_);
       }
-      in.rise_mK_per_min = rise_[j].push_scaled(t_mK, sw.per_min);
+      in.rise_mK_per_min = rise_[j].push_scaled(t_mK, scale_);
     }
     DiagChannelLimits lim;
     if (sw.limits != 0) {
@@ -131,6 +129,8 @@ class DiagnosisStage {
   DiagChannel ch_[kChannels];
   DiagTiming timing_;
   Rise rise_[kChannels];
+  RiseRate<kRiseWindow>::Scale scale_ = {0.0f, 0};
+  uint16_t scale_dt_ = 0;
   uint8_t mask_ = 0;
   bool fault_[kChannels] = {false, false, false, false, false};
 };

@@ -50,6 +50,7 @@ struct Spi {
 namespace detail {
 extern volatile uint8_t tx_buf[kTxBufferBytes];
 extern volatile uint8_t tx_head, tx_tail;
+extern volatile uint32_t ms_ticks;  // 1 ms tick count (little-endian: its first byte is the low one)
 }  // namespace detail
 
 struct Serial {
@@ -69,11 +70,16 @@ struct Serial {
 
 struct Clock {
   static uint32_t millis();
+  // Board-specific (not in the HAL contract), for the sleep loop in main.cpp: the low byte of the
+  // 1 ms tick count -- one byte, so read without blocking interrupts.
+  static BTSM_BOARD_INLINE uint8_t ticks_low() { return *reinterpret_cast<volatile uint8_t*>(&detail::ms_ticks); }
 };
 
 struct Storage {
   static uint16_t size() { return 1024; }
-  static uint8_t read(uint16_t addr) {
+  // Forced inline: six instructions; the model step reads a 48-byte breakpoint every sweep, where
+  // the call and its register shuffling doubled the cost per byte.
+  static BTSM_BOARD_INLINE uint8_t read(uint16_t addr) {
     while (EECR & (1 << EEPE)) {
     }
     EEAR = addr;

@@ -111,6 +111,7 @@ CycleFigures measure_cycles(btsm::sim::SimavrHarness& h, double start_s, double 
     for (int i = sw.first; i <= sw.second; ++i) a += double(active[size_t(i)]), spi_sum += spi[size_t(i)];
     const double cost = a - c.idle_cycles_per_s * (sw.second - sw.first + 1) * bin;
     sum += cost;
+    if (std::getenv("BTSM_BENCH_VERBOSE")) std::printf("   sweep at %.3f s: %.0f cycles\n", start_s + sw.first * bin, cost);
     c.sweep_cycles_max = std::max(c.sweep_cycles_max, cost);
     ++c.sweeps;
   }

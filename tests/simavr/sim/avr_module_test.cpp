@@ -104,10 +104,15 @@ TEST_P(AvrModuleFault, SensorFaultOnTheRightChannelsAndNoAlarm) {
     for (int ch = 0; ch < 5; ++ch) {
       const uint8_t st = s.channel_status[ch] & wire::kStatusStateMask;
       const bool f = (GetParam().faulted >> ch) & 1;
-      if (t < 29.0) EXPECT_NE(st, uint8_t(wire::DiagState::SensorFault)) << "ch" << ch + 1;
+      if (t < 29.0) {
+        EXPECT_NE(st, uint8_t(wire::DiagState::SensorFault)) << "ch" << ch + 1;
+      }
       if (t > 50.0) {
-        if (f) EXPECT_EQ(st, uint8_t(wire::DiagState::SensorFault)) << "ch" << ch + 1 << " t " << t;
-        else EXPECT_NE(st, uint8_t(wire::DiagState::SensorFault)) << "ch" << ch + 1 << " t " << t;
+        if (f) {
+          EXPECT_EQ(st, uint8_t(wire::DiagState::SensorFault)) << "ch" << ch + 1 << " t " << t;
+        } else {
+          EXPECT_NE(st, uint8_t(wire::DiagState::SensorFault)) << "ch" << ch + 1 << " t " << t;
+        }
       }
     }
     if (t > 50.0) ++after;

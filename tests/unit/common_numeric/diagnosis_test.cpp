@@ -4,6 +4,9 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
+#include <random>
+
 namespace btsm {
 namespace {
 
@@ -210,6 +213,37 @@ TEST(DiagnosisOverall, WorstStateRanksAlarmAboveFault) {
   EXPECT_EQ(d.overall(), DiagState::kSensorFault);  // channel 1 still clearing (Mf = 3)
   d.update(in);
   EXPECT_EQ(d.update(in), DiagState::kNormal);
+}
+
+// push_scaled (the firmware's: the scale computed once per sample period, integer clamp and
+// rounding) gives exactly the float rounding of diff * per_min that it replaces, for every window
+// difference class: small, near the rounding ties, near and beyond the clamp, and odd periods.
+TEST(RiseRate, ScaledPushIsTheRoundedFloatProduct) {
+  const auto reference = [](int32_t diff, float per_min) {
+    float rate = static_cast<float>(diff) * per_min;
+    if (rate > 8388607.0f) rate = 8388607.0f;
+    if (rate < -8388607.0f) rate = -8388607.0f;
+    return static_cast<int32_t>(rate < 0.0f ? rate - 0.5f : rate + 0.5f);
+  };
+  std::mt19937 rng(9);
+  for (uint16_t dt : {1u, 7u, 100u, 1000u, 3333u, 5000u, 5001u, 12345u, 60000u, 65535u}) {
+    const auto scale = RiseRate<4>::scale_for(dt);
+    const float per_min = RiseRate<4>::per_min_factor(dt);
+    for (int i = 0; i < 200000; ++i) {
+      int32_t diff;
+      switch (i % 4) {
+        case 0: diff = static_cast<int32_t>(rng() % 20001) - 10000; break;
+        case 1: diff = static_cast<int32_t>(rng() % 16777215) - 8388607; break;
+        case 2: diff = static_cast<int32_t>(std::lround((static_cast<int32_t>(rng() % 2000001) - 1000000 + 0.5) / per_min)) +
+                       static_cast<int32_t>(rng() % 3) - 1; break;  // rates near k + 1/2
+        default: diff = static_cast<int32_t>(std::lround(8388607.0 / per_min)) * (rng() % 2 ? 1 : -1) +
+                        static_cast<int32_t>(rng() % 41) - 20; break;  // near the clamp
+      }
+      RiseRate<4> r(dt);
+      for (int k = 0; k < 3; ++k) ASSERT_EQ(r.push_scaled(0, scale), kDiagNoValue);
+      ASSERT_EQ(r.push_scaled(diff, scale), reference(diff, per_min)) << "dt " << dt << " diff " << diff;
+    }
+  }
 }
 
 TEST(RiseRate, MeasuresMilliKelvinPerMinuteOverTheWindow) {

@@ -242,6 +242,77 @@ TEST(ReducedModelEval, FastPrimitivesMatchTheInt64Reference) {
   }
 }
 
+// The int64 form of step_with (every product formed exactly in int64 and rounded once with
+// fx::shift_right_round), which the firmware used before the 32-bit-word evaluation.
+void step_with_int64(const ModelBreakpoint& p, bool running, uint8_t ambient_channel, uint8_t enabled_mask,
+                     ReducedModelState& st, int32_t ambient_mK, int32_t predicted_mK[kModelChannels]) {
+  const auto rs = [](int64_t v, int s) { return fx::shift_right_round(v, s, fx::Rounding::kNearestHalfAway); };
+  const int32_t x = st.x_q20;
+  for (uint8_t j = 0; j < kModelChannels; ++j) {
+    // Which channels are predicted is not what this reference checks: the arithmetic below is.
+    if (detail_rm::unmodelled_channel(j, static_cast<uint8_t>(1U << j), enabled_mask, ambient_channel, ambient_mK,
+                                      predicted_mK[j]))
+      continue;
+    int64_t theta_q44 = static_cast<int64_t>(p.c_q24[j]) * x;
+    if (running) theta_q44 += static_cast<int64_t>(p.d_q24[j]) * fx::pow2(kStateFracBits);
+    const int64_t theta_mK = rs(rs(theta_q44, kGainFracBits) * 1000, kStateFracBits);
+    int64_t v = static_cast<int64_t>(ambient_mK) + theta_mK;
+    if (v > kInt24Max) v = kInt24Max;
+    if (v <= kModelNoPrediction) v = kModelNoPrediction + 1;
+    predicted_mK[j] = static_cast<int32_t>(v);
+  }
+  int64_t acc_q50 = static_cast<int64_t>(p.a_q30) * x;
+  if (running) acc_q50 += static_cast<int64_t>(p.b_q24) * fx::pow2(kPoleFracBits + kStateFracBits - kGainFracBits);
+  st.x_q20 = fx::saturate<int32_t>(rs(acc_q50, kPoleFracBits));
+}
+
+// The 32-bit-word evaluation (detail_rm::Wide, byte-move shifts) is bit-identical to the int64
+// form: random coefficients and states over the whole int32 range (including saturation of the
+// state), plus values near the rounding ties -- except that a channel with |c x| >= 1024 K
+// saturates at the end of the wire's range instead.
+TEST(ReducedModelEval, StepWithMatchesTheInt64Form) {
+  std::mt19937_64 g(17);
+  const auto any32 = [&] { return static_cast<int32_t>(g()); };
+  const auto scaled = [&] { return static_cast<int32_t>(static_cast<int64_t>(any32()) >> (g() % 31)); };
+  int saturated = 0;
+  for (int i = 0; i < 300000; ++i) {
+    ModelBreakpoint p;
+    p.a_q30 = (i % 2) ? scaled() : static_cast<int32_t>((1 << 30) - 1 - static_cast<int32_t>(g() % 5000000));
+    p.b_q24 = scaled();
+    for (int j = 0; j < kModelChannels; ++j) {
+      p.c_q24[j] = (i % 3 == 0) ? any32() : scaled();
+      p.d_q24[j] = scaled();
+    }
+    ReducedModelState a, b;
+    a.x_q20 = b.x_q20 = (i % 5 == 0) ? any32() : scaled();
+    if (i % 7 == 0) {  // products on (or next to) a rounding tie of the 2^24 and 2^30 shifts
+      p.c_q24[1] = 1 << (g() % 8);
+      a.x_q20 = b.x_q20 = static_cast<int32_t>((static_cast<int64_t>(g() % 2001) - 1000) * (1 << 16) + (g() % 3) - 1);
+      p.a_q30 = 1 << 14;
+    }
+    const bool running = (g() & 1) != 0;
+    const uint8_t ambient_ch = static_cast<uint8_t>(g() % 6);
+    const uint8_t mask = static_cast<uint8_t>(g() % 32 | (i % 4 ? 0x1F : 0));
+    const int32_t ambient = (i % 11 == 0) ? kModelNoPrediction : static_cast<int32_t>(static_cast<int64_t>(any32()) >> 9);
+    int32_t pa[kModelChannels], pb[kModelChannels];
+    const int32_t x0 = a.x_q20;
+    step_with(p, running, ambient_ch, mask, a, ambient, pa);
+    step_with_int64(p, running, ambient_ch, mask, b, ambient, pb);
+    ASSERT_EQ(a.x_q20, b.x_q20) << i;
+    for (int j = 0; j < kModelChannels; ++j) {
+      const int64_t cx = static_cast<int64_t>(p.c_q24[j]) * x0;
+      const bool beyond = cx >= (static_cast<int64_t>(1) << 54) || cx < -(static_cast<int64_t>(1) << 54);
+      if (beyond && pb[j] != kModelNoPrediction && j != ambient_ch) {
+        ASSERT_EQ(pa[j], cx < 0 ? kModelNoPrediction + 1 : kInt24Max) << i << " ch " << j;
+        ++saturated;
+      } else {
+        ASSERT_EQ(pa[j], pb[j]) << i << " ch " << j;
+      }
+    }
+  }
+  EXPECT_GT(saturated, 1000);
+}
+
 TEST(ReducedModelEval, InterpolationFractionAndSegments) {
   const ReducedModel m = quantized_spindle();
   SpeedSegment s = find_segment(m.speed_rpm, m.n_breakpoints, 0);

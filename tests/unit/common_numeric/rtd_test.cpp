@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <cstdio>
+#include <cstring>
 #include <fstream>
 #include <sstream>
 #include <string>
@@ -235,6 +236,70 @@ TEST(RtdFloat, FullRangeFloatInverseStaysWithinAMillikelvinScale) {
   }
   std::printf("[rtd] float vs double, Pt1000, full range: T(R) arithmetic %.2e degC\n", worst);
   EXPECT_LT(worst, 3e-4);
+}
+
+// The MCU's table inverse (pt1000_temperature_fast): every coefficient is the exact double
+// inverse interpolated at the segment's three Chebyshev nodes (recomputed here, so the literals in
+// common/rtd.hpp are provably derived from RtdInverse), in the ulp units of its binade.
+TEST(RtdFast, TableCoefficientsAreTheExactInverseAtChebyshevNodes) {
+  const auto kd = iec60751<double>(1000.0);
+  const detail_rtd::QuadSegment* table = detail_rtd::pt1000_segments();
+  for (int seg = 0; seg < detail_rtd::kPt1000Segments; ++seg) {
+    const int e = seg < 16 ? 9 : 10;  // binade [2^e, 2^(e+1))
+    const double width = std::ldexp(1.0, e) / 16, ulp = std::ldexp(1.0, e - 23);
+    const double mid = std::ldexp(1.0, e) + (seg % 16 + 0.5) * width, h = width / 2;
+    const double u = std::cos(M_PI / 6);
+    const double y0 = rtd_temperature(kd, mid - u * h).value, y1 = rtd_temperature(kd, mid).value,
+                 y2 = rtd_temperature(kd, mid + u * h).value;
+    const double c0 = y1, c1 = (y2 - y0) / (2 * u) / h * ulp, c2 = (y0 + y2 - 2 * y1) / (2 * u * u) / (h * h) * ulp * ulp;
+    EXPECT_NEAR(table[seg].a0, c0, std::fabs(c0) * 1.2e-7 + 1e-12) << "segment " << seg;
+    EXPECT_NEAR(table[seg].a1, c1, std::fabs(c1) * 1.2e-7) << "segment " << seg;
+    EXPECT_NEAR(table[seg].a2, c2, std::fabs(c2) * 1.2e-7) << "segment " << seg;
+  }
+}
+
+// Every float resistance in steps of ~1/100 ohm over the whole table range [512, 2048) ohm (the
+// step walks across every segment boundary) against the double exact inverse of the same float R.
+TEST(RtdFast, ErrorOverTheTableRangeIsMeasuredAndBounded) {
+  const auto kd = iec60751<double>(1000.0);
+  const auto kf = iec60751<float>(1000.0f);
+  double worst = 0, worst_btsm = 0, worst_exact_float = 0, at = 0;
+  for (double r = 512.0; r < 2048.0; r += 0.0097) {
+    const float r_f = static_cast<float>(r);
+    const RtdResult<float> fast = pt1000_temperature_fast(r_f);
+    ASSERT_TRUE(fast.ok()) << r;
+    const double t_ref = rtd_temperature(kd, static_cast<double>(r_f)).value;
+    const double err = std::fabs(static_cast<double>(fast.value) - t_ref);
+    if (err > worst) worst = err, at = t_ref;
+    if (t_ref >= -40.0 && t_ref <= 150.0) {
+      worst_btsm = std::max(worst_btsm, err);
+      worst_exact_float = std::max(worst_exact_float, std::fabs(double(rtd_temperature(kf, r_f).value) - t_ref));
+    }
+  }
+  std::printf("[rtd] table inverse (float) vs exact double, 512...2048 ohm: worst %.2e degC (at %.1f degC); "
+              "-40...150 degC: %.2e degC (RtdInverse<float> there: %.2e)\n",
+              worst, at, worst_btsm, worst_exact_float);
+  EXPECT_LT(worst, 3.5e-5);       // float ulp of t is 1.5e-5 degC above 128 degC
+  EXPECT_LT(worst_btsm, 2.5e-5);  // same scale as the exact float inverse (4e-5 bound above)
+}
+
+// Outside [512, 2048) ohm (and for NaN) the result is RtdInverse<float>'s, bit for bit, errors
+// included; the table's first and last resistances are in the table.
+TEST(RtdFast, OutsideTheTableItIsTheExactInverse) {
+  const auto kf = iec60751<float>(1000.0f);
+  for (float r : {10.0f, 18.0f, 185.2f, 400.0f, 511.99997f, 2048.0f, 2500.0f, 3900.0f, 3905.0f, 1e6f, -1.0f, 0.0f, NAN}) {
+    const RtdResult<float> a = pt1000_temperature_fast(r), b = rtd_temperature(kf, r);
+    EXPECT_EQ(a.status, b.status) << r;
+    if (b.ok()) {
+      EXPECT_EQ(std::memcmp(&a.value, &b.value, sizeof(float)), 0) << r;
+    } else {
+      EXPECT_TRUE(std::isnan(a.value)) << r;
+    }
+  }
+  EXPECT_TRUE(pt1000_temperature_fast(512.0f).ok());
+  EXPECT_NEAR(pt1000_temperature_fast(512.0f).value, rtd_temperature(kf, 512.0f).value, 3e-5);
+  EXPECT_NEAR(pt1000_temperature_fast(2047.9999f).value, rtd_temperature(kf, 2047.9999f).value, 3e-5);
+  EXPECT_NEAR(pt1000_temperature_fast(1000.0f).value, 0.0f, 1e-5);
 }
 
 }  // namespace

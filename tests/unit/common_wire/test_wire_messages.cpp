@@ -245,6 +245,11 @@ TEST(WireMessages, ConfigKeysRangesDefaultsAndCodec) {
   EXPECT_EQ(r.default_value, 5000);
   ASSERT_TRUE(config_key_range(static_cast<uint8_t>(ConfigKey::RrefMilliohm), r));
   EXPECT_EQ(r.default_value, 6800000);
+  // kalman_q = 0 would leave the filter without process noise (unusable): out of range.
+  ASSERT_TRUE(config_key_range(static_cast<uint8_t>(ConfigKey::KalmanProcessNoise), r));
+  EXPECT_EQ(r.min, 1);
+  EXPECT_FALSE(config_value_valid(static_cast<uint8_t>(ConfigKey::KalmanProcessNoise), 0));
+  EXPECT_TRUE(config_value_valid(static_cast<uint8_t>(ConfigKey::KalmanProcessNoise), 1));
   ASSERT_TRUE(config_key_range(channel_role_key(3), r));
   EXPECT_EQ(r.default_value, static_cast<int32_t>(ChannelRole::Ambient));
   EXPECT_STREQ(config_key_name(channel_role_key(0)), "channel_role_1");

@@ -122,6 +122,29 @@ TEST_F(AppFixture, ReportsTheSetTemperaturesWithin10mK) {
   EXPECT_FALSE(board->reset_pending());
 }
 
+// kalman_q = 0 used to be accepted and left every filter unusable (every channel then reported
+// 0.000 degC): it is out of range now (NACK BadValue, configuration unchanged), and the smallest
+// value, 1 (mK)^2/s, filters normally.
+TEST_F(AppFixture, KalmanProcessNoiseZeroIsRefusedAndTheMinimumWorks) {
+  boot();
+  run(6.0);
+  std::vector<uint8_t> p(5);
+  p[0] = static_cast<uint8_t>(wire::ConfigKey::KalmanProcessNoise);
+  put_le32(p.data() + 1, 0);
+  const wire::Ack a = ack_of(request(wire::MsgType::SetConfig, p, wire::MsgType::Ack));
+  EXPECT_EQ(a.status, static_cast<uint8_t>(wire::Nack::BadValue));
+  EXPECT_EQ(a.detail, p[0]);
+  EXPECT_EQ(app->config().kalman_q, 400u);
+  put_le32(p.data() + 1, 1);
+  EXPECT_EQ(ack_of(request(wire::MsgType::SetConfig, p, wire::MsgType::Ack)).status, 0);
+  EXPECT_EQ(app->config().kalman_q, 1u);
+  link->frames.clear();
+  run(60.0);
+  auto s = samples();
+  ASSERT_GE(s.size(), 10u);
+  for (int j = 0; j < 5; ++j) EXPECT_NEAR(s.back().temp_mK[j] / 1000.0, temps[j], 0.01) << "channel " << j + 1;
+}
+
 TEST_F(AppFixture, FaultyChannelReportsSensorFaultAndNoTemperature) {
   boot();
   run(12.0);
