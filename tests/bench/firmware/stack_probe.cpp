@@ -1,11 +1,10 @@
-// Stack-depth probe (developer tool, not part of ctest): runs the real AVR image in simavr with
+// Stack-depth bench (`bench_stack`, part of the `bench` target): runs the real AVR image in simavr with
 // the development key patched into .btsm_key, performs GET_INFO, a full authenticated model
 // upload and a REBOOT over the UART, and reports the deepest stack use (SRAM painted with 0xA5
 // before start). No AD7794 is attached (the firmware reports ADC faults), which does not change
 // the deepest paths (MODEL_BEGIN hashing, MODEL_COMMIT validation, boot with a stored model).
-// Build and run (second argument: end of .bss = 0x100 + data + bss from avr-size):
-//   g++ -std=c++20 -O1 -I. boards/bluno_beetle/stack_probe.cpp $(pkg-config --cflags --libs simavr) -lelf -o /tmp/stack_probe
-//   /tmp/stack_probe build-fw-avr/bin/btsm-fw-bluno.elf $((0x100+28+1170))
+// Usage: stack_probe IMAGE.elf. The end of .bss comes from the image (0x100 + .data + .bss); the
+// margin is what no path touched between it and the deepest stack write.
 #include <simavr/sim_avr.h>
 #include <simavr/sim_elf.h>
 #include <simavr/avr_uart.h>
@@ -27,7 +26,11 @@ static void no_sleep(avr_t*, avr_cycle_count_t) {}
 
 int main(int argc, char** argv) {
   elf_firmware_t fw{};
-  if (elf_read_firmware(argv[1], &fw)) return 2;
+  if (argc < 2 || elf_read_firmware(argv[1], &fw)) {
+    std::fprintf(stderr, "usage: stack_probe IMAGE.elf (could not read '%s')\n", argc > 1 ? argv[1] : "");
+    return 2;
+  }
+  const int bss_end_addr = 0x100 + static_cast<int>(fw.datasize + fw.bsssize);
   avr_t* avr = avr_make_mcu_by_name("atmega328p");
   avr_init(avr);
   avr->frequency = 16000000;
@@ -86,7 +89,7 @@ int main(int argc, char** argv) {
   send(btsm::wire::MsgType::GetInfo, 1, {});
   printf("INFO: %d\n", wait_frame(0x02, p));
   {
-    const int bss_end = std::strtol(argv[2], nullptr, 0);
+    const int bss_end = bss_end_addr;
     int d = bss_end;
     while (d <= 0x8FF && avr->data[d] == 0xA5) ++d;
     printf("before upload: max stack use %d bytes\n", 0x8FF - d + 1);
@@ -97,7 +100,7 @@ int main(int argc, char** argv) {
   btsm::put_le32(b.data() + 2, btsm::crc32(blob.data(), blob.size()));
   send(btsm::wire::MsgType::ModelBegin, 2, b);
   auto depth = [&](const char* what) {
-    const int bss_end = std::strtol(argv[2], nullptr, 0);
+    const int bss_end = bss_end_addr;
     int d = bss_end;
     while (d <= 0x8FF && avr->data[d] == 0xA5) ++d;
     printf("%s: max stack use %d bytes\n", what, 0x8FF - d + 1);
@@ -132,7 +135,7 @@ int main(int argc, char** argv) {
   printf("model_seq %u state %u samples-bytes %zu\n", info.model_seq, info.model_state, out_bytes.size());
   {
     // Repaint the free region and reboot: measures boot with a stored model (load + validate).
-    const int be = std::strtol(argv[2], nullptr, 0);
+    const int be = bss_end_addr;
     const int sp = avr->data[0x5D] | (avr->data[0x5E] << 8);
     for (int a2 = be; a2 < sp - 4; ++a2) avr->data[a2] = 0xA5;
     send(btsm::wire::MsgType::Reboot, seq++, {});
@@ -146,10 +149,12 @@ int main(int argc, char** argv) {
     btsm::wire::decode_info(p.data(), uint8_t(p.size()), info);
     printf("after reboot: model_seq %u state %u resets %u\n", info.model_seq, info.model_state, info.resets);
   }
-  const int bss_end = std::strtol(argv[2], nullptr, 0);
+  const int bss_end = bss_end_addr;
   int deepest = bss_end;
   while (deepest <= 0x8FF && avr->data[deepest] == 0xA5) ++deepest;
-  printf("end of .bss 0x%x, deepest stack write 0x%x: max stack use %d bytes, untouched margin %d bytes\n",
-         bss_end, deepest, 0x8FF - deepest + 1, deepest - bss_end);
+  const int margin = deepest - bss_end;
+  printf("end of .bss 0x%x, deepest stack write 0x%x: max stack use %d bytes, untouched margin %d bytes "
+         "(target >= 64: %s)\n",
+         bss_end, deepest, 0x8FF - deepest + 1, margin, margin >= 64 ? "met" : "NOT met");
   return 0;
 }
