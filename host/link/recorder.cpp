@@ -228,6 +228,9 @@ std::string format_sample_line(const Sample& s, const ChannelRoles& roles) {
       if (st & kFaultShort) line += "/short";
       if (st & kFaultAdc) line += "/adc";
       if (st & kFaultReference) line += "/ref";
+      // The filter held its estimate against this reading (an outlier): the temperature shown is
+      // the estimate, and the technician should know a probe is jumping.
+      if (st & kFaultKalmanReject) line += "/outlier";
     }
     line += " ";
   }

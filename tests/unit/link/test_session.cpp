@@ -211,6 +211,9 @@ TEST(Monitor, LineShowsTemperaturesPredictionsAndFaults) {
   EXPECT_NE(line.find("(pred  21.500)"), std::string::npos) << line;
   EXPECT_NE(line.find("SENSOR_FAULT/open"), std::string::npos) << line;
   EXPECT_NE(line.find("model"), std::string::npos) << line;
+  s.channel_status[1] = wire::kFaultKalmanReject;  // state NORMAL, reading rejected as an outlier
+  EXPECT_NE(format_sample_line(s, roles).find("| T2 "), std::string::npos);
+  EXPECT_NE(format_sample_line(s, roles).find("NORMAL/outlier"), std::string::npos) << format_sample_line(s, roles);
   roles.role[4] = static_cast<uint8_t>(wire::ChannelRole::Disabled);
   EXPECT_EQ(format_sample_line(s, roles).find("T5"), std::string::npos);
 }
