@@ -123,92 +123,103 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
   auto last_host = last_rx;
   double last_ambient = std::nan("");
 
-  for (;;) {
-    if (opts.stop && opts.stop->load()) {
-      sum.stop_reason = "interrupted";
-      break;
-    }
-    if (opts.max_samples && sum.rows >= opts.max_samples) {
-      sum.stop_reason = "sample count reached";
-      break;
-    }
-    if (opts.duration_s > 0 && last_time_s >= opts.duration_s) {
-      sum.stop_reason = "duration reached";
-      break;
-    }
-    auto ev = next_sample_with_reconnect(session, Millis(250), opts.reconnect_s, sum.reconnects, opts.stop);
-    const auto now = std::chrono::steady_clock::now();
-    if (!ev) {
-      if (std::chrono::duration<double>(now - last_rx).count() > sample_timeout_s)
-        throw LinkError(LinkErrorKind::kTimeout,
-                        fmt::format("{}: no sample for {:.0f} s (module stopped sending?)",
-                                    session.transport().describe(), sample_timeout_s));
-      continue;
-    }
-    last_rx = now;
-    const Sample& s = ev->sample;
-    // Module time, unwrapped across the u32 wrap by summing per-sample differences in integer
-    // ms; a restart starts a new epoch placed after the last row by the host clock.
-    if (!last_ms) {
-      epoch_base_s = 0;
-      epoch_ms = 0;
-    } else if (ev->restarted) {
-      ++sum.restarts;
-      epoch_base_s = last_time_s + std::max(0.001, std::chrono::duration<double>(now - last_host).count());
-      epoch_ms = 0;
-    } else {
-      epoch_ms += static_cast<uint32_t>(s.time_ms - *last_ms);
-    }
-    last_ms = s.time_ms;
-    last_host = now;
-    const double time_s = epoch_base_s + static_cast<double>(epoch_ms) / 1000.0;
-    if (ev->gap) sum.gaps.push_back(*ev->gap);
-
-    double ambient = mk_to_c(s.temp_mK[amb]);
-    if (std::isnan(ambient)) {
-      if (std::isnan(last_ambient)) {
-        ++sum.rows_without_ambient;
+  // The rows already written are good whatever ends the recording: a lost link still gets the
+  // summary lines (with the reason), then the error goes to the caller.
+  const auto finish = [&] {
+    sum.lost = session.tracker().lost();
+    sum.invalid_frames = session.frame_counters().frame_errors() + session.invalid_payloads();
+    w.flush();
+    w.close();
+    // RecordingWriter takes metadata only before the first row, and gaps are only known as they
+    // happen, so the summary goes after the rows as comment lines (the reader accepts '#' lines
+    // anywhere).
+    std::ofstream tail(opts.out_path, std::ios::app);
+    tail << "# samples: " << sum.rows << "\n";
+    tail << "# lost_samples: " << sum.lost << "\n";
+    tail << "# module_restarts: " << sum.restarts << "\n";
+    tail << "# link_reconnects: " << sum.reconnects << "\n";
+    tail << "# rejected_frames: " << sum.invalid_frames << "\n";
+    if (sum.ambient_held_rows) tail << "# ambient_held_rows: " << sum.ambient_held_rows << "\n";
+    if (sum.rows_without_ambient) tail << "# rows_without_ambient: " << sum.rows_without_ambient << "\n";
+    for (const auto& g : sum.gaps) tail << "# dropped: " << g.first << "-" << g.last << "\n";
+    tail << "# stop_reason: " << sum.stop_reason << "\n";
+    if (!tail) throw std::runtime_error("cannot append the summary to " + opts.out_path);
+  };
+  try {
+    for (;;) {
+      if (opts.stop && opts.stop->load()) {
+        sum.stop_reason = "interrupted";
+        break;
+      }
+      if (opts.max_samples && sum.rows >= opts.max_samples) {
+        sum.stop_reason = "sample count reached";
+        break;
+      }
+      if (opts.duration_s > 0 && last_time_s >= opts.duration_s) {
+        sum.stop_reason = "duration reached";
+        break;
+      }
+      auto ev = next_sample_with_reconnect(session, Millis(250), opts.reconnect_s, sum.reconnects, opts.stop);
+      const auto now = std::chrono::steady_clock::now();
+      if (!ev) {
+        if (std::chrono::duration<double>(now - last_rx).count() > sample_timeout_s)
+          throw LinkError(LinkErrorKind::kTimeout,
+                          fmt::format("{}: no sample for {:.0f} s (module stopped sending?)",
+                                      session.transport().describe(), sample_timeout_s));
         continue;
       }
-      ambient = last_ambient;
-      ++sum.ambient_held_rows;
+      last_rx = now;
+      const Sample& s = ev->sample;
+      // Module time, unwrapped across the u32 wrap by summing per-sample differences in integer
+      // ms; a restart starts a new epoch placed after the last row by the host clock.
+      if (!last_ms) {
+        epoch_base_s = 0;
+        epoch_ms = 0;
+      } else if (ev->restarted) {
+        ++sum.restarts;
+        epoch_base_s = last_time_s + std::max(0.001, std::chrono::duration<double>(now - last_host).count());
+        epoch_ms = 0;
+      } else {
+        epoch_ms += static_cast<uint32_t>(s.time_ms - *last_ms);
+      }
+      last_ms = s.time_ms;
+      last_host = now;
+      const double time_s = epoch_base_s + static_cast<double>(epoch_ms) / 1000.0;
+      if (ev->gap) sum.gaps.push_back(*ev->gap);
+
+      double ambient = mk_to_c(s.temp_mK[amb]);
+      if (std::isnan(ambient)) {
+        if (std::isnan(last_ambient)) {
+          ++sum.rows_without_ambient;
+          continue;
+        }
+        ambient = last_ambient;
+        ++sum.ambient_held_rows;
+      }
+      last_ambient = ambient;
+      if (time_s <= last_time_s) continue;  // never write non-increasing time (duplicate timestamp)
+      std::vector<double> temps;
+      for (int c : columns) temps.push_back(mk_to_c(s.temp_mK[c]));
+      w.append(time_s, s.speed_rpm, ambient, temps);
+      last_time_s = time_s;
+      ++sum.rows;
+      if (opts.progress) {
+        RecordProgress p;
+        p.rows = sum.rows;
+        p.lost = session.tracker().lost();
+        p.restarts = sum.restarts;
+        p.elapsed_s = std::chrono::duration<double>(now - t0).count();
+        p.module_time_s = time_s;
+        p.last = &s;
+        opts.progress(p);
+      }
     }
-    last_ambient = ambient;
-    if (time_s <= last_time_s) continue;  // never write non-increasing time (duplicate timestamp)
-    std::vector<double> temps;
-    for (int c : columns) temps.push_back(mk_to_c(s.temp_mK[c]));
-    w.append(time_s, s.speed_rpm, ambient, temps);
-    last_time_s = time_s;
-    ++sum.rows;
-    if (opts.progress) {
-      RecordProgress p;
-      p.rows = sum.rows;
-      p.lost = session.tracker().lost();
-      p.restarts = sum.restarts;
-      p.elapsed_s = std::chrono::duration<double>(now - t0).count();
-      p.module_time_s = time_s;
-      p.last = &s;
-      opts.progress(p);
-    }
+  } catch (const LinkError& e) {
+    sum.stop_reason = std::string("link lost: ") + e.what();
+    finish();
+    throw;
   }
-  sum.lost = session.tracker().lost();
-  sum.invalid_frames = session.frame_counters().frame_errors() + session.invalid_payloads();
-  w.flush();
-  w.close();
-  // RecordingWriter takes metadata only before the first row, and gaps are only known as they
-  // happen, so the summary goes after the rows as comment lines (the reader accepts '#' lines
-  // anywhere).
-  std::ofstream tail(opts.out_path, std::ios::app);
-  tail << "# samples: " << sum.rows << "\n";
-  tail << "# lost_samples: " << sum.lost << "\n";
-  tail << "# module_restarts: " << sum.restarts << "\n";
-  tail << "# link_reconnects: " << sum.reconnects << "\n";
-  tail << "# rejected_frames: " << sum.invalid_frames << "\n";
-  if (sum.ambient_held_rows) tail << "# ambient_held_rows: " << sum.ambient_held_rows << "\n";
-  if (sum.rows_without_ambient) tail << "# rows_without_ambient: " << sum.rows_without_ambient << "\n";
-  for (const auto& g : sum.gaps) tail << "# dropped: " << g.first << "-" << g.last << "\n";
-  tail << "# stop_reason: " << sum.stop_reason << "\n";
-  if (!tail) throw std::runtime_error("cannot append the summary to " + opts.out_path);
+  finish();
   return sum;
 }
 

@@ -171,6 +171,29 @@ TEST(Record, WritesCsvThatReadsBackSampleForSample) {
   }
 }
 
+// A module that falls silent ends the recording with an error, but the rows already written stay,
+// and the summary lines say why it ended.
+TEST(Record, LostLinkKeepsTheRowsAndWritesTheReason) {
+  FakeModuleOptions o;
+  o.sample_period = Millis(2);
+  ModuleOnPty m(o);
+  test::TempDir dir;
+  const std::string path = dir.path + "/rec.csv";
+  const ModuleIdentity id = identify(m.session);
+  RecordOptions ro;
+  ro.out_path = path;
+  ro.reconnect_s = 0;
+  ro.sample_timeout_s = 0.5;
+  ro.progress = [&](const RecordProgress& p) {
+    if (p.rows == 15) m.module.set_streaming(false);
+  };
+  EXPECT_THROW(record(m.session, id, ro), LinkError);
+  const thermal::Recording rec = thermal::read_recording_csv(path);
+  EXPECT_GE(rec.rows(), 15u);
+  EXPECT_EQ(rec.meta_value("stop_reason").rfind("link lost: ", 0), 0u) << rec.meta_value("stop_reason");
+  EXPECT_EQ(rec.meta_value("samples"), std::to_string(rec.rows()));
+}
+
 TEST(Record, GapsBecomeDroppedLinesAndNeverRows) {
   FakeModuleOptions o;
   o.sample_period = Millis(2);
