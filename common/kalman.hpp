@@ -84,6 +84,21 @@ inline bool fix_range(float v) {
   return (bits & 0x7FFFFFFFUL) < 0x45000000UL;  // 0x45000000 = 2048.0f; NaN and inf are above
 }
 inline bool fix_range(double v) { return fabs(v) < 2048.0; }
+// Bit-identical (the memo key): the memo holds a function of P alone, so identical bits give
+// identical results whatever the values (no NaN or signed-zero cases to think about); on the AVR an
+// integer compare instead of a float comparison call per channel.
+inline bool same_bits(float a, float b) {
+  uint32_t x, y;
+  memcpy(&x, &a, sizeof x);
+  memcpy(&y, &b, sizeof y);
+  return x == y;
+}
+inline bool same_bits(double a, double b) {
+  uint64_t x, y;
+  memcpy(&x, &a, sizeof x);
+  memcpy(&y, &b, sizeof y);
+  return x == y;
+}
 // round(u * f / 2^32) for a 32-bit fraction f (the high word of the 64-bit product, rounded).
 inline uint32_t mul_frac(uint32_t u, uint32_t f) {
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
@@ -203,7 +218,7 @@ class KalmanChannel {
       memo = 0;
     }
     const Real nu = z - t_;
-    if (memo != 0 && memo->valid && memo->p == p_) {
+    if (memo != 0 && memo->valid && detail_kalman::same_bits(memo->p, p_)) {
       if (!(nu * nu > memo->gate_s)) {
         consecutive_rejects_ = 0;
         t_ += memo->gain * nu;

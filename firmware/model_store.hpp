@@ -30,8 +30,8 @@
 namespace btsm {
 
 // What the firmware keeps of the active model in RAM (72 bytes instead of the 456-byte
-// ReducedModel): the speed schedule and the diagnosis limits. Breakpoint coefficients are read
-// from EEPROM at every model step (two breakpoints, 96 bytes of EEPROM reads).
+// ReducedModel): the speed schedule and the diagnosis limits. Breakpoint coefficients stay in
+// EEPROM; ModelStore caches the ones interpolated for the current speed.
 struct ModelRuntime {
   uint8_t n_breakpoints;
   uint8_t ambient_channel;
@@ -194,24 +194,23 @@ class ModelStore {
 
   void abort_session() { session_ = kNoSession; }
 
-  // One model step (common/reduced_model.hpp definition) with the two breakpoints read from the
-  // active slot: writes predicted temperatures (mK) and advances the state.
+  // One model step (common/reduced_model.hpp definition): writes predicted temperatures (mK) and
+  // advances the state. The coefficients interpolated for a speed are kept until the speed
+  // changes (it rarely does between sweeps): reading two breakpoints from EEPROM and
+  // interpolating cost ~1000 cycles per step, the 51 bytes of RAM are spare.
   void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
-                  int32_t* predicted_mK) const {
-    const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
-    ModelBreakpoint lo;
-    read_breakpoint(seg.lo, lo);
-    if (seg.frac_q16 == 0) {
-      // At a breakpoint (stopped, at or above the top speed, or exactly on one): lo is the
-      // interpolated point, the other breakpoint need not be read from EEPROM.
-      step_with(lo, seg.running, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
-      return;
+                  int32_t* predicted_mK) {
+    if (speed_rpm != coeff_speed_rpm_) {
+      const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
+      read_breakpoint(seg.lo, coeff_);
+      if (seg.frac_q16 != 0) {  // else at a breakpoint: the other one need not be read
+        ModelBreakpoint hi;
+        read_breakpoint(seg.hi, hi);
+        interpolate(coeff_, hi, seg.frac_q16, coeff_);  // member-wise: out may alias lo
+      }
+      coeff_speed_rpm_ = speed_rpm;
     }
-    ModelBreakpoint hi;
-    read_breakpoint(seg.hi, hi);
-    ModelBreakpoint p;
-    interpolate(lo, hi, seg.frac_q16, p);
-    step_with(p, seg.running, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
+    step_with(coeff_, speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
   }
 
   // Least-squares initial state from measured temperatures (common init_from_measurement), with a
@@ -266,6 +265,8 @@ class ModelStore {
  private:
   enum Session : uint8_t { kNoSession, kReceiving };
   static constexpr uint8_t kNoSlot = 0xFF;
+  // No model speed is 0xFFFF (wire::kSpeedFromTach is not a speed, the tach saturates at 65534).
+  static constexpr uint16_t kNoCoefficients = 0xFFFF;
 
   BTSM_NOINLINE Nack verify_tag_and_bytes(const uint8_t* tag, uint16_t& detail) {
     uint8_t expected[kHmacSha256Size];
@@ -352,9 +353,10 @@ class ModelStore {
   }
 
   // Validates the slot and copies the schedule and limits (false: slot invalid, rt untouched).
-  bool load_runtime(uint8_t slot, ModelRuntime& rt) const {
+  bool load_runtime(uint8_t slot, ModelRuntime& rt) {
     ReducedModel tmp;
     if (!load_slot(slot, tmp).ok()) return false;
+    coeff_speed_rpm_ = kNoCoefficients;
     rt.n_breakpoints = tmp.n_breakpoints;
     rt.ambient_channel = tmp.ambient_channel;
     rt.enabled_mask = tmp.enabled_mask;
@@ -367,6 +369,8 @@ class ModelStore {
   Storage& storage_;
   EepromWriter<Storage, 58> writer_;
   HmacSha256 mac_;
+  ModelBreakpoint coeff_;  // interpolated at coeff_speed_rpm_ (step_model)
+  uint16_t coeff_speed_rpm_ = kNoCoefficients;
   uint32_t expected_crc_ = 0;
   uint32_t running_crc_ = 0;
   uint32_t next_seq_ = 1;
