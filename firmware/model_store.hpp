@@ -195,31 +195,21 @@ class ModelStore {
   void abort_session() { session_ = kNoSession; }
 
   // One model step (common/reduced_model.hpp definition): writes predicted temperatures (mK) and
-  // advances the state. The coefficients interpolated for a speed are kept until the speed
-  // changes (it rarely does between sweeps): reading two breakpoints from EEPROM and
-  // interpolating cost ~1000 cycles per step, the 51 bytes of RAM are spare.
-  void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
+  // advances the state. Out of line, as init_state: inlined into poll() (and so into main) their
+  // locals would deepen the stack under everything else.
+  BTSM_NOINLINE void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
                   int32_t* predicted_mK) {
-    if (speed_rpm != coeff_speed_rpm_) {
-      const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
-      read_breakpoint(seg.lo, coeff_);
-      if (seg.frac_q16 != 0) {  // else at a breakpoint: the other one need not be read
-        ModelBreakpoint hi;
-        read_breakpoint(seg.hi, hi);
-        interpolate(coeff_, hi, seg.frac_q16, coeff_);  // member-wise: out may alias lo
-      }
-      coeff_speed_rpm_ = speed_rpm;
-    }
-    step_with(coeff_, speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
+    step_with(coefficients(rt, speed_rpm), speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, st, ambient_mK,
+              predicted_mK);
   }
 
-  // Least-squares initial state from measured temperatures (common init_from_measurement), with a
-  // temporary full model on the stack: called once after boot or a new model.
-  bool init_state(ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK, const int32_t* measured_mK) const {
+  // Least-squares initial state from measured temperatures (common init_from_measurement):
+  // called once after boot or a new model.
+  BTSM_NOINLINE bool init_state(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
+                  const int32_t* measured_mK) {
     if (!active()) return false;
-    ReducedModel tmp;
-    if (!load_slot(active_slot_, tmp).ok()) return false;
-    return init_from_measurement(tmp, st, speed_rpm, ambient_mK, measured_mK);
+    return init_from_measurement_with(coefficients(rt, speed_rpm), speed_rpm > 0, rt.ambient_channel,
+                                      rt.enabled_mask, st, ambient_mK, measured_mK);
   }
 
   // Parses and validates the blob of `slot` from EEPROM into `out` (same checks and order as the
@@ -350,6 +340,25 @@ class ModelStore {
   BTSM_NOINLINE ModelCheck check_slot(uint8_t slot) const {
     ReducedModel tmp;
     return load_slot(slot, tmp);
+  }
+
+  // The active model's coefficients interpolated at speed_rpm. They are kept until the speed
+  // changes (it rarely does between sweeps) or another model is loaded: reading two breakpoints
+  // from EEPROM and interpolating them cost ~1000 cycles per model step. (The initial state used
+  // to parse and validate the whole blob again, with a 456-byte model on the stack: the deepest
+  // stack of the firmware.)
+  const ModelBreakpoint& coefficients(const ModelRuntime& rt, uint16_t speed_rpm) {
+    if (speed_rpm != coeff_speed_rpm_) {
+      const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
+      read_breakpoint(seg.lo, coeff_);
+      if (seg.frac_q16 != 0) {  // else at a breakpoint: the other one need not be read
+        ModelBreakpoint hi;
+        read_breakpoint(seg.hi, hi);
+        interpolate(coeff_, hi, seg.frac_q16, coeff_);  // member-wise: out may alias lo
+      }
+      coeff_speed_rpm_ = speed_rpm;
+    }
+    return coeff_;
   }
 
   // Validates the slot and copies the schedule and limits (false: slot invalid, rt untouched).
