@@ -358,17 +358,13 @@ class RiseRate {
   int32_t push_scaled(int32_t t_mK, const Scale& s) {
     int32_t oldest;
     if (!store(t_mK, oldest)) return kDiagNoValue;
-    const int32_t diff = t_mK - oldest;
-    if (diff > s.max_diff) return kDiagMaxRate;
-    if (diff < -s.max_diff) return -kDiagMaxRate;
-    const int32_t twice = static_cast<int32_t>(static_cast<float>(diff) * s.twice_per_min);
-    const int32_t r = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);  // halves away from zero
-    return r > kDiagMaxRate ? kDiagMaxRate : (r < -kDiagMaxRate ? -kDiagMaxRate : r);
+    return scaled_rate(t_mK - oldest, s);
   }
   uint16_t dt_ms() const { return dt_ms_; }
 
- private:
-  // Stores the sample; false while the window is not full (or dt is 0), else the oldest sample.
+  // push_scaled() in two steps, for a caller that needs the rate (and its Scale) only sometimes:
+  // store() keeps the sample and says whether a rate is due (the window is full), giving the
+  // oldest sample; scaled_rate(t_mK - oldest, s) is then the rate push_scaled() returns.
   bool store(int32_t t_mK, int32_t& oldest) {
     buf_[head_] = t_mK;
     head_ = static_cast<uint8_t>((head_ + 1) % kWindow);
@@ -377,6 +373,15 @@ class RiseRate {
     oldest = buf_[head_];  // next slot to be overwritten = oldest sample
     return true;
   }
+  static int32_t scaled_rate(int32_t diff, const Scale& s) {
+    if (diff > s.max_diff) return kDiagMaxRate;
+    if (diff < -s.max_diff) return -kDiagMaxRate;
+    const int32_t twice = static_cast<int32_t>(static_cast<float>(diff) * s.twice_per_min);
+    const int32_t r = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);  // halves away from zero
+    return r > kDiagMaxRate ? kDiagMaxRate : (r < -kDiagMaxRate ? -kDiagMaxRate : r);
+  }
+
+ private:
   static int32_t round_rate(float rate) {
     if (rate > 8388607.0f) rate = 8388607.0f;
     if (rate < -8388607.0f) rate = -8388607.0f;

@@ -84,6 +84,37 @@ inline bool fix_range(float v) {
   return (bits & 0x7FFFFFFFUL) < 0x45000000UL;  // 0x45000000 = 2048.0f; NaN and inf are above
 }
 inline bool fix_range(double v) { return fabs(v) < 2048.0; }
+// Bit-identical (the memo key): the memo holds a function of P alone, so identical bits give
+// identical results whatever the values (no NaN or signed-zero cases to think about); on the AVR an
+// integer compare instead of a float comparison call per channel.
+inline bool same_bits(float a, float b) {
+  uint32_t x, y;
+  memcpy(&x, &a, sizeof x);
+  memcpy(&y, &b, sizeof y);
+  return x == y;
+}
+inline bool same_bits(double a, double b) {
+  uint64_t x, y;
+  memcpy(&x, &a, sizeof x);
+  memcpy(&y, &b, sizeof y);
+  return x == y;
+}
+// The innovation gate test nu^2 > gate_s. Float: without the multiplication (and the float
+// comparison) when |nu| is clearly inside the gate, which is nearly always: with the biased
+// exponents en of nu and eg >= 1 of a positive gate_s, |nu| < 2^(en - 126), so nu^2 and its
+// rounding are <= 2^(2 en - 252) <= 2^(eg - 127) <= gate_s whenever 2 en <= eg + 125. Otherwise
+// (and for inf/NaN, en = 255) the product decides as before, so the outcome never differs.
+inline bool outside_gate(float nu, float gate_s) {
+  uint32_t n, g;
+  memcpy(&n, &nu, sizeof n);
+  memcpy(&g, &gate_s, sizeof g);
+  // Through the high words: on the AVR a 32-bit shift by 23 is a bit loop, by 16 a register move.
+  const uint16_t en = static_cast<uint8_t>(static_cast<uint16_t>(n >> 16) >> 7);  // sign dropped
+  const uint16_t eg = static_cast<uint16_t>(static_cast<uint16_t>(g >> 16) >> 7);  // sign: > 255
+  if (eg >= 1 && eg <= 255 && 2 * en <= eg + 125) return false;
+  return nu * nu > gate_s;
+}
+inline bool outside_gate(double nu, double gate_s) { return nu * nu > gate_s; }
 // round(u * f / 2^32) for a 32-bit fraction f (the high word of the 64-bit product, rounded).
 inline uint32_t mul_frac(uint32_t u, uint32_t f) {
 #if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
@@ -102,7 +133,7 @@ inline uint32_t mul_frac(uint32_t u, uint32_t f) {
 
 template <class Real>
 struct KalmanGainMemo {
-  bool valid = false;
+  bool valid = false;  // filled by KalmanSetup::gain_for
   Real p;          // P before the update (the key)
   Real gate_s;     // gate_sigma^2 * S
   Real gain;       // K
@@ -158,6 +189,50 @@ struct KalmanSetup {
     }
     return valid;
   }
+
+  // Gate, gain and posterior of an update from variance p (what the full update computes).
+  void gain_for(Real p, KalmanGainMemo<Real>& m) const {
+    const Real prior = p + q;
+    const Real s = prior + r2;
+    m.valid = true;
+    m.p = p;
+    m.gate_s = gate2 * s;
+    m.gain = prior / s;
+    const Real post = (Real(1) - m.gain) * prior;
+    // Settled once P is within the tolerance of the steady posterior; P is then set to it
+    // exactly (and stays there while settled).
+    m.settles = steady_state_gain && post >= settle_lo && post <= settle_hi;
+    m.p_post = m.settles ? steady_post : post;
+  }
+};
+
+// The gains of the first kSize updates after an initialisation (P = r^2) without a rejection
+// (MCU): P follows the same sequence in every filter, so configure() computes them once and the
+// transient, where every sample ran a float division and five more float operations, looks them
+// up like the memo. Bit-identical: gain_for() is the update's own computation. Four: the default K
+// settles in four updates (the last entry then belongs to the steady posterior, which a settled
+// filter falls back to after a rejection). 72 bytes on the AVR, one table for the channels that
+// share a setup; configure() again after every KalmanSetup::configure().
+template <class Real>
+struct KalmanSettleGains {
+  static constexpr uint8_t kSize = 4;
+  KalmanGainMemo<Real> gain[kSize];
+
+  void configure(const KalmanSetup<Real>& k) {
+    Real p = k.r2;  // P after an initialisation
+    for (uint8_t i = 0; i < kSize; ++i) {
+      gain[i].valid = false;
+      if (!k.valid) continue;
+      k.gain_for(p, gain[i]);
+      p = gain[i].p_post;
+    }
+  }
+  // The precomputed gains for variance p, or null.
+  const KalmanGainMemo<Real>* find(Real p) const {
+    for (uint8_t i = 0; i < kSize; ++i)
+      if (gain[i].valid && detail_kalman::same_bits(gain[i].p, p)) return &gain[i];
+    return 0;
+  }
 };
 
 // State of one filter; every call passes the setup it was configured with.
@@ -174,8 +249,9 @@ class KalmanChannel {
     p_ = Real(0);
   }
 
-  // memo may be null (see above).
-  KalmanOutcome update(const KalmanSetup<Real>& k, Real z, KalmanGainMemo<Real>* memo = 0) {
+  // memo and settle may be null (see above); settle must be configured from k.
+  KalmanOutcome update(const KalmanSetup<Real>& k, Real z, KalmanGainMemo<Real>* memo = 0,
+                       const KalmanSettleGains<Real>* settle = 0) {
     if (!k.valid || !(z == z)) return KalmanOutcome::kInvalid;
     if (!initialized_) {
       init_on(k, z);
@@ -203,21 +279,18 @@ class KalmanChannel {
       memo = 0;
     }
     const Real nu = z - t_;
-    if (memo != 0 && memo->valid && memo->p == p_) {
-      if (!(nu * nu > memo->gate_s)) {
-        consecutive_rejects_ = 0;
-        t_ += memo->gain * nu;
-        p_ = memo->p_post;
-        if (memo->settles) enter_steady();
-        return KalmanOutcome::kAccepted;
+    KalmanGainMemo<Real> local;
+    if (memo == 0) memo = &local;
+    if (!memo->valid || !detail_kalman::same_bits(memo->p, p_)) {
+      // Kept in the memo for the other channels: one comparison for them instead of a search.
+      const KalmanGainMemo<Real>* known = settle != 0 ? settle->find(p_) : 0;
+      if (known != 0) {
+        *memo = *known;
+      } else {
+        k.gain_for(p_, *memo);  // the full computation
       }
-      memo = 0;  // a rejection: the full path below handles it (and leaves the memo alone)
     }
-    const Real p_before = p_;
-    const Real prior = p_ + k.q;
-    const Real s = prior + k.r2;
-    const Real gate_s = k.gate2 * s;
-    if (nu * nu > gate_s) {
+    if (detail_kalman::outside_gate(nu, memo->gate_s)) {
       if (rejected_total_ != 0xFFFFU) ++rejected_total_;  // saturating lifetime counters
       ++consecutive_rejects_;
       if (k.max_consecutive_rejects != 0 && consecutive_rejects_ >= k.max_consecutive_rejects) {
@@ -225,28 +298,13 @@ class KalmanChannel {
         init_on(k, z);
         return KalmanOutcome::kReinitialized;
       }
-      p_ = prior;
+      p_ += k.q;  // the prior
       return KalmanOutcome::kRejected;
     }
     consecutive_rejects_ = 0;
-    const Real gain = prior / s;
-    t_ += gain * nu;
-    p_ = (Real(1) - gain) * prior;
-    // Settled once P is within the tolerance of the steady posterior; P is then set to it
-    // exactly (and stays there while settled).
-    const bool settles = k.steady_state_gain && p_ >= k.settle_lo && p_ <= k.settle_hi;
-    if (settles) {
-      p_ = k.steady_post;
-      enter_steady();
-    }
-    if (memo != 0) {
-      memo->valid = true;
-      memo->p = p_before;
-      memo->gate_s = gate_s;
-      memo->gain = gain;
-      memo->p_post = p_;
-      memo->settles = settles;
-    }
+    t_ += memo->gain * nu;
+    p_ = memo->p_post;
+    if (memo->settles) enter_steady();
     return KalmanOutcome::kAccepted;
   }
 

@@ -710,21 +710,20 @@ inline void step(const ReducedModel& m, ReducedModelState& st, uint16_t speed_rp
 
 // Initialise the state from one set of measured temperatures (mK) instead of assuming the machine
 // is at ambient: least squares x = sum c_j (theta_j - d_j u) / sum c_j^2 over enabled, non-ambient
-// channels with a valid reading (!= kModelNoPrediction). Float is fine here: it runs once and the
-// result is only a starting point. Returns false (state untouched) when no channel qualifies.
-inline bool init_from_measurement(const ReducedModel& m, ReducedModelState& st, uint16_t speed_rpm,
-                                  int32_t ambient_mK, const int32_t measured_mK[kModelChannels]) {
+// channels with a valid reading (!= kModelNoPrediction), with already interpolated coefficients
+// `p` (as step_with). Float is fine here: it runs once and the result is only a starting point.
+// Returns false (state untouched) when no channel qualifies.
+inline bool init_from_measurement_with(const ModelBreakpoint& p, bool running, uint8_t ambient_channel,
+                                       uint8_t enabled_mask, ReducedModelState& st, int32_t ambient_mK,
+                                       const int32_t measured_mK[kModelChannels]) {
   if (ambient_mK == kModelNoPrediction) return false;
-  const SpeedSegment seg = find_segment(m.speed_rpm, m.n_breakpoints, speed_rpm);
-  ModelBreakpoint p;
-  interpolate(m.bp[seg.lo], m.bp[seg.hi], seg.frac_q16, p);
   float num = 0.0f, den = 0.0f;
   const float gain_scale = 1.0f / static_cast<float>(fx::pow2(kGainFracBits));
   for (uint8_t j = 0; j < kModelChannels; ++j) {
-    if (((m.enabled_mask >> j) & 1U) == 0 || j == m.ambient_channel) continue;
+    if (((enabled_mask >> j) & 1U) == 0 || j == ambient_channel) continue;
     if (measured_mK[j] == kModelNoPrediction) continue;
     const float c = static_cast<float>(p.c_q24[j]) * gain_scale;
-    const float d = seg.running ? static_cast<float>(p.d_q24[j]) * gain_scale : 0.0f;
+    const float d = running ? static_cast<float>(p.d_q24[j]) * gain_scale : 0.0f;
     const float theta = static_cast<float>(measured_mK[j] - ambient_mK) * 0.001f;
     num += c * (theta - d);
     den += c * c;
@@ -735,6 +734,16 @@ inline bool init_from_measurement(const ReducedModel& m, ReducedModelState& st, 
   const float xc = x > limit ? limit : (x < -limit ? -limit : x);
   st.x_q20 = static_cast<int32_t>(xc * static_cast<float>(fx::pow2(kStateFracBits)));
   return true;
+}
+
+// The same at spindle speed `speed_rpm`.
+inline bool init_from_measurement(const ReducedModel& m, ReducedModelState& st, uint16_t speed_rpm,
+                                  int32_t ambient_mK, const int32_t measured_mK[kModelChannels]) {
+  if (ambient_mK == kModelNoPrediction) return false;
+  const SpeedSegment seg = find_segment(m.speed_rpm, m.n_breakpoints, speed_rpm);
+  ModelBreakpoint p;
+  interpolate(m.bp[seg.lo], m.bp[seg.hi], seg.frac_q16, p);
+  return init_from_measurement_with(p, seg.running, m.ambient_channel, m.enabled_mask, st, ambient_mK, measured_mK);
 }
 
 // ---- double reference (host side) --------------------------------------------------------------

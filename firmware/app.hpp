@@ -83,7 +83,7 @@ class App {
     if (commit_pending_ && !store_.busy() && !out_pending_) run_commit();
     if (model_init_pending_) {
       model_init_pending_ = false;
-      if (store_.init_state(model_state_, speed_rpm_, init_ambient_mK_, temp_mK_)) have_prediction_ = false;
+      if (store_.init_state(model_, model_state_, speed_rpm_, init_ambient_mK_, temp_mK_)) have_prediction_ = false;
     }
     receive(now);
 
@@ -161,6 +161,7 @@ class App {
     // the transient after a reset or a rejection runs the full update (common/kalman.hpp).
     kp.steady_state_gain = true;
     kalman_setup_.configure(kp);
+    kalman_settle_.configure(kalman_setup_);
     for (uint8_t j = 0; j < kChannels; ++j) kalman_[j].reset();
     board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
     diagnosis_.configure(config_.alarm_latch != 0);
@@ -224,7 +225,7 @@ class App {
       if (!t.ok()) {
         faults = t.status == RtdStatus::kBelowRange ? wire::kFaultShort : wire::kFaultOpen;
       } else {
-        const KalmanOutcome o = kalman_[j].update(kalman_setup_, t.value, &memo);
+        const KalmanOutcome o = kalman_[j].update(kalman_setup_, t.value, &memo, &kalman_settle_);
         if (o == KalmanOutcome::kRejected) {
           faults |= wire::kFaultKalmanReject;
           if (kalman_rejects_ != 0xFFFF) ++kalman_rejects_;
@@ -530,6 +531,7 @@ class App {
   ModelRuntime model_;
   ReducedModelState model_state_;
   KalmanSetup<float> kalman_setup_;
+  KalmanSettleGains<float> kalman_settle_;
   KalmanChannel<float> kalman_[kChannels];
   DiagnosisStage diagnosis_;
   // Set in init() (an initialiser image would sit in SRAM on AVR).

@@ -83,22 +83,6 @@ class DiagnosisStage {
     mask_ = static_cast<uint8_t>(mask_ | (1u << j));
     if (sw.dt_ms > 0 && sw.dt_ms < 65536UL) rise_[j].set_dt_ms_keep(static_cast<uint16_t>(sw.dt_ms));
     const int32_t t_mK = sw.temp_mK[j];
-    DiagInput in;
-    in.fault = fault;
-    in.measured_mK = t_mK;
-    in.predicted_mK = sw.limits != 0 ? sw.predicted_mK[j] : kDiagNoValue;
-    if (fault || t_mK == wire::kMissing) {
-      rise_[j].reset();
-      in.rise_mK_per_min = kDiagNoValue;
-    } else {
-      // The channels share the sample period: the scale (two divisions) is computed when the
-      // window dt changes, not per sample or per channel (scale_dt_ = 0: none yet).
-      if (rise_[j].dt_ms() != scale_dt_) {
-        scale_dt_ = rise_[j].dt_ms();
-        scale_ = RiseRate<kRiseWindow>::scale_for(scale_dt_);
-      }
-      in.rise_mK_per_min = rise_[j].push_scaled(t_mK, scale_);
-    }
     DiagChannelLimits lim;
     if (sw.limits != 0) {
       const ChannelLimits& l = sw.limits[j];
@@ -106,6 +90,24 @@ class DiagnosisStage {
       lim.alarm_band_mK = l.alarm_band_mK;
       lim.abs_limit_mK = l.abs_limit_mK;
       lim.max_rise_mK_per_min = l.max_rise_mK_per_min;
+    }
+    DiagInput in;
+    in.fault = fault;
+    in.measured_mK = t_mK;
+    in.predicted_mK = sw.limits != 0 ? sw.predicted_mK[j] : kDiagNoValue;
+    in.rise_mK_per_min = kDiagNoValue;
+    int32_t oldest;
+    if (fault || t_mK == wire::kMissing) {
+      rise_[j].reset();
+    } else if (rise_[j].store(t_mK, oldest) && lim.max_rise_mK_per_min != 0) {
+      // The rate (a float multiplication and two conversions) only where a limit checks it, and
+      // its scale (two float divisions) only once a rate is due: the channels share the sample
+      // period, so the scale is computed when the window dt changes (scale_dt_ = 0: none yet).
+      if (rise_[j].dt_ms() != scale_dt_) {
+        scale_dt_ = rise_[j].dt_ms();
+        scale_ = RiseRate<kRiseWindow>::scale_for(scale_dt_);
+      }
+      in.rise_mK_per_min = RiseRate<kRiseWindow>::scaled_rate(t_mK - oldest, scale_);
     }
     ch_[j].update(in, lim, timing_);
   }

@@ -30,8 +30,8 @@
 namespace btsm {
 
 // What the firmware keeps of the active model in RAM (72 bytes instead of the 456-byte
-// ReducedModel): the speed schedule and the diagnosis limits. Breakpoint coefficients are read
-// from EEPROM at every model step (two breakpoints, 96 bytes of EEPROM reads).
+// ReducedModel): the speed schedule and the diagnosis limits. Breakpoint coefficients stay in
+// EEPROM; ModelStore caches the ones interpolated for the current speed.
 struct ModelRuntime {
   uint8_t n_breakpoints;
   uint8_t ambient_channel;
@@ -194,33 +194,22 @@ class ModelStore {
 
   void abort_session() { session_ = kNoSession; }
 
-  // One model step (common/reduced_model.hpp definition) with the two breakpoints read from the
-  // active slot: writes predicted temperatures (mK) and advances the state.
-  void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
-                  int32_t* predicted_mK) const {
-    const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
-    ModelBreakpoint lo;
-    read_breakpoint(seg.lo, lo);
-    if (seg.frac_q16 == 0) {
-      // At a breakpoint (stopped, at or above the top speed, or exactly on one): lo is the
-      // interpolated point, the other breakpoint need not be read from EEPROM.
-      step_with(lo, seg.running, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
-      return;
-    }
-    ModelBreakpoint hi;
-    read_breakpoint(seg.hi, hi);
-    ModelBreakpoint p;
-    interpolate(lo, hi, seg.frac_q16, p);
-    step_with(p, seg.running, rt.ambient_channel, rt.enabled_mask, st, ambient_mK, predicted_mK);
+  // One model step (common/reduced_model.hpp definition): writes predicted temperatures (mK) and
+  // advances the state. Out of line, as init_state: inlined into poll() (and so into main) their
+  // locals would deepen the stack under everything else.
+  BTSM_NOINLINE void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
+                  int32_t* predicted_mK) {
+    step_with(coefficients(rt, speed_rpm), speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, st, ambient_mK,
+              predicted_mK);
   }
 
-  // Least-squares initial state from measured temperatures (common init_from_measurement), with a
-  // temporary full model on the stack: called once after boot or a new model.
-  bool init_state(ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK, const int32_t* measured_mK) const {
+  // Least-squares initial state from measured temperatures (common init_from_measurement):
+  // called once after boot or a new model.
+  BTSM_NOINLINE bool init_state(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
+                  const int32_t* measured_mK) {
     if (!active()) return false;
-    ReducedModel tmp;
-    if (!load_slot(active_slot_, tmp).ok()) return false;
-    return init_from_measurement(tmp, st, speed_rpm, ambient_mK, measured_mK);
+    return init_from_measurement_with(coefficients(rt, speed_rpm), speed_rpm > 0, rt.ambient_channel,
+                                      rt.enabled_mask, st, ambient_mK, measured_mK);
   }
 
   // Parses and validates the blob of `slot` from EEPROM into `out` (same checks and order as the
@@ -266,6 +255,8 @@ class ModelStore {
  private:
   enum Session : uint8_t { kNoSession, kReceiving };
   static constexpr uint8_t kNoSlot = 0xFF;
+  // No model speed is 0xFFFF (wire::kSpeedFromTach is not a speed, the tach saturates at 65534).
+  static constexpr uint16_t kNoCoefficients = 0xFFFF;
 
   BTSM_NOINLINE Nack verify_tag_and_bytes(const uint8_t* tag, uint16_t& detail) {
     uint8_t expected[kHmacSha256Size];
@@ -351,10 +342,30 @@ class ModelStore {
     return load_slot(slot, tmp);
   }
 
+  // The active model's coefficients interpolated at speed_rpm. They are kept until the speed
+  // changes (it rarely does between sweeps) or another model is loaded: reading two breakpoints
+  // from EEPROM and interpolating them cost ~1000 cycles per model step. (The initial state used
+  // to parse and validate the whole blob again, with a 456-byte model on the stack: the deepest
+  // stack of the firmware.)
+  const ModelBreakpoint& coefficients(const ModelRuntime& rt, uint16_t speed_rpm) {
+    if (speed_rpm != coeff_speed_rpm_) {
+      const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
+      read_breakpoint(seg.lo, coeff_);
+      if (seg.frac_q16 != 0) {  // else at a breakpoint: the other one need not be read
+        ModelBreakpoint hi;
+        read_breakpoint(seg.hi, hi);
+        interpolate(coeff_, hi, seg.frac_q16, coeff_);  // member-wise: out may alias lo
+      }
+      coeff_speed_rpm_ = speed_rpm;
+    }
+    return coeff_;
+  }
+
   // Validates the slot and copies the schedule and limits (false: slot invalid, rt untouched).
-  bool load_runtime(uint8_t slot, ModelRuntime& rt) const {
+  bool load_runtime(uint8_t slot, ModelRuntime& rt) {
     ReducedModel tmp;
     if (!load_slot(slot, tmp).ok()) return false;
+    coeff_speed_rpm_ = kNoCoefficients;
     rt.n_breakpoints = tmp.n_breakpoints;
     rt.ambient_channel = tmp.ambient_channel;
     rt.enabled_mask = tmp.enabled_mask;
@@ -367,6 +378,8 @@ class ModelStore {
   Storage& storage_;
   EepromWriter<Storage, 58> writer_;
   HmacSha256 mac_;
+  ModelBreakpoint coeff_;  // interpolated at coeff_speed_rpm_ (step_model)
+  uint16_t coeff_speed_rpm_ = kNoCoefficients;
   uint32_t expected_crc_ = 0;
   uint32_t running_crc_ = 0;
   uint32_t next_seq_ = 1;

@@ -224,10 +224,26 @@ uint16_t Tach::rpm() {
   }
   // No pulse for 2 s (500000 ticks of 4 us): stopped.
   if (!seen || period == 0 || now - last > 500000UL) return 0;
-  // rpm = 60 s / (period * 4 us * pulses per rev) = 15e6 / (period * ppr)
+  // rpm = 60 s / (period * 4 us * pulses per rev) = 15e6 / (period * ppr), rounded, at most 65534
   const uint32_t denom = period * tach_ppr;
-  const uint32_t rpm = (15000000UL + denom / 2) / denom;
-  return rpm > 65534UL ? 65534U : static_cast<uint16_t>(rpm);
+  if (denom <= 228) return 65534U;  // (15e6 + denom / 2) / denom > 65534 (also denom 0)
+  // The quotient has 16 bits (<= 65502), so 16 steps of long division (libgcc's 32-bit division
+  // runs 32, ~600 cycles every sweep); the remainder never exceeds n >> 1, no overflow.
+  const uint32_t n = 15000000UL + denom / 2;
+  uint32_t r = n >> 16;
+  uint16_t low = static_cast<uint16_t>(n);
+  uint16_t q = 0;
+  for (uint8_t i = 0; i < 16; ++i) {
+    r <<= 1;
+    if (low & 0x8000U) r |= 1;  // a bit test: "| (low >> 15)" compiled to a dozen instructions
+    low = static_cast<uint16_t>(low << 1);
+    q = static_cast<uint16_t>(q << 1);
+    if (r >= denom) {
+      r -= denom;
+      q |= 1;
+    }
+  }
+  return q;
 }
 
 void Identity::read_key_record(uint8_t* out, uint16_t n) {
