@@ -263,67 +263,88 @@ namespace detail_rm {
 inline int64_t abs64(int64_t v) { return v < 0 ? -v : v; }
 }  // namespace detail_rm
 
-// Checks every constraint listed in ModelStatus on a fixed-point model (decode() calls it; the
-// firmware may call it again on the EEPROM copy at boot).
-inline ModelCheck validate(const ReducedModel& m) {
-  using detail_rm::abs64;
-  if (m.n_breakpoints < kModelMinBreakpoints || m.n_breakpoints > kModelMaxBreakpoints)
+// Checks every constraint listed in ModelStatus, in three parts that need different fields, so the
+// firmware can validate a blob streamed from EEPROM one breakpoint at a time (a whole ReducedModel
+// is 456 bytes of its 2 KB of SRAM). validate() runs them in this order on a whole model.
+
+// The schedule: breakpoint count, sample period, channel mask, ambient channel, speeds.
+inline ModelCheck validate_schedule(uint8_t n_breakpoints, uint16_t dt_ms, uint8_t enabled_mask,
+                                    uint8_t ambient_channel, const uint16_t speed_rpm[kModelMaxBreakpoints]) {
+  if (n_breakpoints < kModelMinBreakpoints || n_breakpoints > kModelMaxBreakpoints)
     return model_check(ModelStatus::kBadBreakpointCount);
-  if (m.dt_ms < kModelMinDtMs || m.dt_ms > kModelMaxDtMs) return model_check(ModelStatus::kBadDt);
-  if ((m.enabled_mask & 0xE0U) != 0 || (m.enabled_mask & 0x1FU) == 0)
-    return model_check(ModelStatus::kBadChannelMask);
-  if (m.ambient_channel != kModelAmbientNone &&
-      (m.ambient_channel >= kModelChannels || ((m.enabled_mask >> m.ambient_channel) & 1U) == 0))
+  if (dt_ms < kModelMinDtMs || dt_ms > kModelMaxDtMs) return model_check(ModelStatus::kBadDt);
+  if ((enabled_mask & 0xE0U) != 0 || (enabled_mask & 0x1FU) == 0) return model_check(ModelStatus::kBadChannelMask);
+  if (ambient_channel != kModelAmbientNone &&
+      (ambient_channel >= kModelChannels || ((enabled_mask >> ambient_channel) & 1U) == 0))
     return model_check(ModelStatus::kBadAmbientChannel);
-  if (m.speed_rpm[0] != 0) return model_check(ModelStatus::kBadSpeeds, 0);
+  if (speed_rpm[0] != 0) return model_check(ModelStatus::kBadSpeeds, 0);
   for (uint8_t i = 1; i < kModelMaxBreakpoints; ++i) {
-    if (i < m.n_breakpoints) {
-      if (m.speed_rpm[i] <= m.speed_rpm[i - 1]) return model_check(ModelStatus::kBadSpeeds, i);
-    } else if (m.speed_rpm[i] != 0) {
+    if (i < n_breakpoints) {
+      if (speed_rpm[i] <= speed_rpm[i - 1]) return model_check(ModelStatus::kBadSpeeds, i);
+    } else if (speed_rpm[i] != 0) {
       return model_check(ModelStatus::kBadSpeeds, i);
     }
   }
-  for (uint8_t i = 0; i < kModelMaxBreakpoints; ++i) {
-    const ModelBreakpoint& p = m.bp[i];
-    if (i >= m.n_breakpoints) {
-      bool zero = p.a_q30 == 0 && p.b_q24 == 0;
-      for (uint8_t j = 0; j < kModelChannels; ++j) zero = zero && p.c_q24[j] == 0 && p.d_q24[j] == 0;
-      if (!zero) return model_check(ModelStatus::kUnusedNotZero, i);
-      continue;
-    }
-    const int32_t one_q30 = static_cast<int32_t>(fx::pow2(kPoleFracBits));
-    if (p.a_q30 >= one_q30 || p.a_q30 <= -one_q30) return model_check(ModelStatus::kUnstablePole, i);
-    if (i == 0) {
-      bool zero = p.b_q24 == 0;
-      for (uint8_t j = 0; j < kModelChannels; ++j) zero = zero && p.d_q24[j] == 0;
-      if (!zero) return model_check(ModelStatus::kInputAtStandstill, 0);
-    }
-    // x_ss = b / (1 - a): |b| * 2^6 <= 1000 * (2^30 - a)  (Q24 -> Q30 for b). All in int64.
-    const int64_t one_minus_a = one_q30 - static_cast<int64_t>(p.a_q30);  // in (0, 2^31)
-    const int64_t b_q30 = static_cast<int64_t>(p.b_q24) * fx::pow2(kPoleFracBits - kGainFracBits);
-    if (abs64(b_q30) > (kModelMaxSteadyStateMk / 1000) * one_minus_a)
-      return model_check(ModelStatus::kSteadyStateOutOfRange, i);
-    // Steady output per channel: |c x_ss + d| <= 1000 K, x_ss in Q20 computed once here.
-    const int64_t x_ss_q20 =
-        fx::div_round(b_q30 * fx::pow2(kStateFracBits), one_minus_a, fx::Rounding::kNearestHalfAway);
-    for (uint8_t j = 0; j < kModelChannels; ++j) {
-      const int64_t theta_q44 = static_cast<int64_t>(p.c_q24[j]) * x_ss_q20 +
-                                static_cast<int64_t>(p.d_q24[j]) * fx::pow2(kStateFracBits);
-      if (abs64(theta_q44) > static_cast<int64_t>(kModelMaxSteadyStateMk / 1000) *
-                                 fx::pow2(kGainFracBits + kStateFracBits))
-        return model_check(ModelStatus::kGainOutOfRange, i, j);
-    }
+  return model_check(ModelStatus::kOk);
+}
+
+// Breakpoint i of a model with n_breakpoints (unused ones must be all zero). Kept out of line:
+// avr-gcc inlines its 64-bit arithmetic into the caller's breakpoint loop at ~700 B more flash.
+#if defined(__GNUC__)
+__attribute__((noinline))
+#endif
+inline ModelCheck validate_breakpoint(const ModelBreakpoint& p, uint8_t i, uint8_t n_breakpoints) {
+  using detail_rm::abs64;
+  if (i >= n_breakpoints) {
+    bool zero = p.a_q30 == 0 && p.b_q24 == 0;
+    for (uint8_t j = 0; j < kModelChannels; ++j) zero = zero && p.c_q24[j] == 0 && p.d_q24[j] == 0;
+    return zero ? model_check(ModelStatus::kOk) : model_check(ModelStatus::kUnusedNotZero, i);
   }
+  const int32_t one_q30 = static_cast<int32_t>(fx::pow2(kPoleFracBits));
+  if (p.a_q30 >= one_q30 || p.a_q30 <= -one_q30) return model_check(ModelStatus::kUnstablePole, i);
+  if (i == 0) {
+    bool zero = p.b_q24 == 0;
+    for (uint8_t j = 0; j < kModelChannels; ++j) zero = zero && p.d_q24[j] == 0;
+    if (!zero) return model_check(ModelStatus::kInputAtStandstill, 0);
+  }
+  // x_ss = b / (1 - a): |b| * 2^6 <= 1000 * (2^30 - a)  (Q24 -> Q30 for b). All in int64.
+  const int64_t one_minus_a = one_q30 - static_cast<int64_t>(p.a_q30);  // in (0, 2^31)
+  const int64_t b_q30 = static_cast<int64_t>(p.b_q24) * fx::pow2(kPoleFracBits - kGainFracBits);
+  if (abs64(b_q30) > (kModelMaxSteadyStateMk / 1000) * one_minus_a)
+    return model_check(ModelStatus::kSteadyStateOutOfRange, i);
+  // Steady output per channel: |c x_ss + d| <= 1000 K, x_ss in Q20 computed once here.
+  const int64_t x_ss_q20 =
+      fx::div_round(b_q30 * fx::pow2(kStateFracBits), one_minus_a, fx::Rounding::kNearestHalfAway);
   for (uint8_t j = 0; j < kModelChannels; ++j) {
-    if (((m.enabled_mask >> j) & 1U) == 0) continue;
-    const ChannelLimits& l = m.limits[j];
+    const int64_t theta_q44 = static_cast<int64_t>(p.c_q24[j]) * x_ss_q20 +
+                              static_cast<int64_t>(p.d_q24[j]) * fx::pow2(kStateFracBits);
+    if (abs64(theta_q44) > static_cast<int64_t>(kModelMaxSteadyStateMk / 1000) *
+                               fx::pow2(kGainFracBits + kStateFracBits))
+      return model_check(ModelStatus::kGainOutOfRange, i, j);
+  }
+  return model_check(ModelStatus::kOk);
+}
+
+// The diagnosis limits of the enabled channels (no residual bands on the ambient channel).
+inline ModelCheck validate_limits(const ChannelLimits limits[kModelChannels], uint8_t enabled_mask,
+                                  uint8_t ambient_channel) {
+  for (uint8_t j = 0; j < kModelChannels; ++j) {
+    if (((enabled_mask >> j) & 1U) == 0) continue;
+    const ChannelLimits& l = limits[j];
     if (l.abs_limit_mK < kModelMinAbsLimitMk || l.abs_limit_mK > kModelMaxAbsLimitMk)
       return model_check(ModelStatus::kLimitOutOfRange, 0xFF, j);
-    if (j == m.ambient_channel) continue;  // no residual on the ambient channel
+    if (j == ambient_channel) continue;
     if (l.warn_band_mK == 0 || l.alarm_band_mK <= l.warn_band_mK)
       return model_check(ModelStatus::kBadBands, 0xFF, j);
   }
   return model_check(ModelStatus::kOk);
+}
+
+// The whole model (decode() calls it).
+inline ModelCheck validate(const ReducedModel& m) {
+  ModelCheck c = validate_schedule(m.n_breakpoints, m.dt_ms, m.enabled_mask, m.ambient_channel, m.speed_rpm);
+  for (uint8_t i = 0; i < kModelMaxBreakpoints && c.ok(); ++i) c = validate_breakpoint(m.bp[i], i, m.n_breakpoints);
+  return c.ok() ? validate_limits(m.limits, m.enabled_mask, m.ambient_channel) : c;
 }
 
 // ---- codec --------------------------------------------------------------------------------------

@@ -78,8 +78,9 @@ class App {
     }
 
     flush_output();
-    // Stack-heavy steps (a 456-byte ReducedModel on the stack for validation) run here, at the
-    // shallowest call depth, not inside the frame handler or the sweep processing.
+    // The stack-heaviest steps (the commit: HMAC tag check, then the blob validated breakpoint by
+    // breakpoint from EEPROM) run here, at the shallowest call depth, not inside the frame handler
+    // or the sweep processing.
     if (commit_pending_ && !store_.busy() && !out_pending_) run_commit();
     if (model_init_pending_) {
       model_init_pending_ = false;

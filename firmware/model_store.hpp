@@ -213,8 +213,10 @@ class ModelStore {
   }
 
   // Parses and validates the blob of `slot` from EEPROM into `out` (same checks and order as the
-  // common decode(): CRC, magic, version, content). `out` is modified even on failure.
-  ModelCheck load_slot(uint8_t slot, ReducedModel& out) const {
+  // common decode(): CRC, magic, version, then validate()'s schedule, breakpoints, limits). The
+  // breakpoints are checked one at a time as they are read and not kept (they stay in EEPROM):
+  // ~130 bytes of stack instead of a 456-byte ReducedModel. `out` is modified even on failure.
+  BTSM_NOINLINE ModelCheck load_slot(uint8_t slot, ModelRuntime& out) const {
     const uint16_t base = eeprom_layout::blob_addr(slot);
     uint32_t crc = 0;
     for (uint16_t i = 0; i < kBlobOffCrc; ++i) {
@@ -227,7 +229,6 @@ class ModelStore {
     read_bytes(base, buf, 10);
     if (get_le32(buf + kBlobOffMagic) != kReducedModelMagic) return model_check(ModelStatus::kBadMagic);
     if (buf[kBlobOffVersion] != kReducedModelVersion) return model_check(ModelStatus::kBadVersion);
-    out.version = buf[kBlobOffVersion];
     out.n_breakpoints = buf[kBlobOffBreakpointCount];
     out.ambient_channel = buf[kBlobOffAmbientChannel];
     out.enabled_mask = buf[kBlobOffEnabledMask];
@@ -235,10 +236,15 @@ class ModelStore {
     for (uint8_t i = 0; i < kModelMaxBreakpoints; ++i) {
       read_bytes(static_cast<uint16_t>(base + kBlobOffSpeeds + 2 * i), buf, 2);
       out.speed_rpm[i] = get_le16(buf);
-      read_bytes(static_cast<uint16_t>(base + kBlobOffBreakpoints + kBlobBreakpointSize * i), buf,
-                 kBlobBreakpointSize);
-      decode_breakpoint(buf, out.bp[i]);
     }
+    ModelCheck c = validate_schedule(out.n_breakpoints, out.dt_ms, out.enabled_mask, out.ambient_channel, out.speed_rpm);
+    for (uint8_t i = 0; i < kModelMaxBreakpoints && c.ok(); ++i) {
+      ModelBreakpoint bp;
+      read_bytes(static_cast<uint16_t>(base + kBlobOffBreakpoints + kBlobBreakpointSize * i), buf, kBlobBreakpointSize);
+      decode_breakpoint(buf, bp);
+      c = validate_breakpoint(bp, i, out.n_breakpoints);
+    }
+    if (!c.ok()) return c;
     for (uint8_t j = 0; j < kModelChannels; ++j) {
       read_bytes(static_cast<uint16_t>(base + kBlobOffWarnBands + 2 * j), buf, 2);
       out.limits[j].warn_band_mK = get_le16(buf);
@@ -249,7 +255,7 @@ class ModelStore {
       read_bytes(static_cast<uint16_t>(base + kBlobOffMaxRise + 2 * j), buf, 2);
       out.limits[j].max_rise_mK_per_min = get_le16(buf);
     }
-    return validate(out);
+    return validate_limits(out.limits, out.enabled_mask, out.ambient_channel);
   }
 
  private:
@@ -336,9 +342,9 @@ class ModelStore {
     return crc == get_le32(h + eeprom_layout::kHdrCrc);
   }
 
-  // Full validation with a temporary ReducedModel on the stack (boot and commit only).
+  // Full validation into a scratch runtime (commit: the active model stays untouched).
   BTSM_NOINLINE ModelCheck check_slot(uint8_t slot) const {
-    ReducedModel tmp;
+    ModelRuntime tmp;
     return load_slot(slot, tmp);
   }
 
@@ -363,15 +369,10 @@ class ModelStore {
 
   // Validates the slot and copies the schedule and limits (false: slot invalid, rt untouched).
   bool load_runtime(uint8_t slot, ModelRuntime& rt) {
-    ReducedModel tmp;
+    ModelRuntime tmp;
     if (!load_slot(slot, tmp).ok()) return false;
     coeff_speed_rpm_ = kNoCoefficients;
-    rt.n_breakpoints = tmp.n_breakpoints;
-    rt.ambient_channel = tmp.ambient_channel;
-    rt.enabled_mask = tmp.enabled_mask;
-    rt.dt_ms = tmp.dt_ms;
-    memcpy(rt.speed_rpm, tmp.speed_rpm, sizeof rt.speed_rpm);
-    memcpy(rt.limits, tmp.limits, sizeof rt.limits);
+    rt = tmp;
     return true;
   }
 

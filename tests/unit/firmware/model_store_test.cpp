@@ -103,10 +103,19 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
   again.boot(loaded);
   ASSERT_TRUE(again.active());
   EXPECT_EQ(active_blob(again), blob);
-  ReducedModel ref, parsed;
+  ReducedModel ref;
+  ModelRuntime parsed;
   ASSERT_TRUE(decode(blob.data(), blob.size(), ref).ok());
   ASSERT_TRUE(again.load_slot(0, parsed).ok());
-  EXPECT_EQ(std::memcmp(&ref.bp, &parsed.bp, sizeof ref.bp), 0);
+  EXPECT_EQ(parsed.n_breakpoints, ref.n_breakpoints);
+  EXPECT_EQ(parsed.ambient_channel, ref.ambient_channel);
+  EXPECT_EQ(parsed.enabled_mask, ref.enabled_mask);
+  for (int j = 0; j < kModelChannels; ++j) {
+    EXPECT_EQ(parsed.limits[j].warn_band_mK, ref.limits[j].warn_band_mK);
+    EXPECT_EQ(parsed.limits[j].alarm_band_mK, ref.limits[j].alarm_band_mK);
+    EXPECT_EQ(parsed.limits[j].abs_limit_mK, ref.limits[j].abs_limit_mK);
+    EXPECT_EQ(parsed.limits[j].max_rise_mK_per_min, ref.limits[j].max_rise_mK_per_min);
+  }
   EXPECT_EQ(loaded.dt_ms, ref.dt_ms);
   EXPECT_EQ(loaded.n_breakpoints, ref.n_breakpoints);
   EXPECT_EQ(std::memcmp(loaded.speed_rpm, ref.speed_rpm, sizeof ref.speed_rpm), 0);
