@@ -261,6 +261,23 @@ struct ReducedModelF64State {
 
 namespace detail_rm {
 inline int64_t abs64(int64_t v) { return v < 0 ? -v : v; }
+
+// floor(n * 2^16 / d) for n < d: the quotient has 16 bits, so 16 steps of restoring division
+// (libgcc's 32-bit division on the AVR runs 32, ~700 cycles). The remainder stays below d, so
+// doubling it needs 17 bits.
+inline uint16_t fraction_q16(uint16_t n, uint16_t d) {
+  uint32_t r = n;
+  uint16_t q = 0;
+  for (uint8_t i = 0; i < 16; ++i) {
+    r <<= 1;
+    q = static_cast<uint16_t>(q << 1);
+    if (r >= d) {
+      r -= d;
+      q |= 1U;
+    }
+  }
+  return q;
+}
 }  // namespace detail_rm
 
 // Checks every constraint listed in ModelStatus, in three parts that need different fields, so the
@@ -514,8 +531,8 @@ inline SpeedSegment find_segment(const uint16_t* speeds, uint8_t n, uint16_t spe
   while (i + 1 < n && speeds[i + 1] <= speed_rpm) ++i;
   s.lo = i;
   s.hi = static_cast<uint8_t>(i + 1);
-  const uint32_t num = static_cast<uint32_t>(speed_rpm - speeds[i]) << kSpeedFracBits;
-  s.frac_q16 = static_cast<uint16_t>(num / static_cast<uint32_t>(speeds[i + 1] - speeds[i]));
+  s.frac_q16 = detail_rm::fraction_q16(static_cast<uint16_t>(speed_rpm - speeds[i]),
+                                       static_cast<uint16_t>(speeds[i + 1] - speeds[i]));
   return s;
 }
 
@@ -534,15 +551,32 @@ inline int64_t round_shift(int64_t v, int s) {
   return (v + (fx::pow2(s - 1) - (v < 0 ? 1 : 0))) >> s;
 }
 
+#if defined(__GNUC__)
+#define BTSM_RM_INLINE inline __attribute__((always_inline))
+#else
+#define BTSM_RM_INLINE inline
+#endif
+
+// a * b, 16 x 16 -> 32 bits. On the AVR the empty asm hides that `a` was cut from a 32-bit value:
+// avr-gcc 5.4 otherwise simplifies the zero extension away and calls the 32 x 32 __mulsi3 instead
+// of __umulhisi3 (~2.5x the cycles).
+BTSM_RM_INLINE uint32_t mul_u16(uint16_t a, uint16_t b) {
+#if defined(__AVR__)
+  __asm__("" : "+r"(a));
+#endif
+  return static_cast<uint32_t>(a) * b;
+}
+
 // p0 + round((p1 - p0) * f / 2^16) in 32-bit arithmetic: the true difference d (33 bits) is
 // split as d = dh * 2^16 + dl with dl = d mod 2^16, so d * f / 2^16 = dh * f + dl * f / 2^16;
-// the result lies between p0 and p1, so computing modulo 2^32 gives it exactly.
-inline int32_t lerp_q(int32_t p0, int32_t p1, uint16_t f) {
+// the result lies between p0 and p1, so computing modulo 2^32 gives it exactly. Forced inline:
+// the firmware calls it from one loop (ModelStore::coefficients), twelve times per refresh.
+BTSM_RM_INLINE int32_t lerp_q(int32_t p0, int32_t p1, uint16_t f) {
   const bool negative = p1 < p0;
   const uint32_t dm = static_cast<uint32_t>(p1) - static_cast<uint32_t>(p0);  // d mod 2^32
-  const uint32_t low = static_cast<uint32_t>(static_cast<uint16_t>(dm)) * f;   // dl * f
+  const uint32_t low = mul_u16(static_cast<uint16_t>(dm), f);                  // dl * f
   // dh * f mod 2^32, dh = floor(d / 2^16) = (dm >> 16) - (negative ? 2^16 : 0)
-  uint32_t r = static_cast<uint32_t>(p0) + static_cast<uint32_t>(static_cast<uint16_t>(dm >> 16)) * f -
+  uint32_t r = static_cast<uint32_t>(p0) + mul_u16(static_cast<uint16_t>(dm >> 16), f) -
                (negative ? static_cast<uint32_t>(f) << 16 : 0U) + (low >> 16);
   const uint16_t rem = static_cast<uint16_t>(low);
   if (rem > 0x8000U || (rem == 0x8000U && !negative)) ++r;  // ties away from zero
@@ -558,12 +592,6 @@ struct Wide {
   uint32_t lo;
   int32_t hi;
 };
-
-#if defined(__GNUC__)
-#define BTSM_RM_INLINE inline __attribute__((always_inline))
-#else
-#define BTSM_RM_INLINE inline
-#endif
 
 // a * b exactly. On a little-endian target the int64 product (libgcc's 32x32->64 __mulsidi3 on
 // AVR) is read as its two words through a union -- no shift at all (GCC documents union type
@@ -663,16 +691,22 @@ BTSM_RM_INLINE bool unmodelled_channel(uint8_t j, uint8_t bit, uint8_t enabled_m
 // Coefficients at one speed (linear interpolation between two breakpoints, see header).
 inline void interpolate(const ModelBreakpoint& lo, const ModelBreakpoint& hi, uint16_t frac_q16,
                         ModelBreakpoint& out) {
-  using detail_rm::lerp_q;
   if (frac_q16 == 0) {  // exactly breakpoint lo (lerp_q(p0, p1, 0) == p0)
     out = lo;
     return;
   }
-  out.a_q30 = lerp_q(lo.a_q30, hi.a_q30, frac_q16);
-  out.b_q24 = lerp_q(lo.b_q24, hi.b_q24, frac_q16);
-  for (uint8_t j = 0; j < kModelChannels; ++j) {
-    out.c_q24[j] = lerp_q(lo.c_q24[j], hi.c_q24[j], frac_q16);
-    out.d_q24[j] = lerp_q(lo.d_q24[j], hi.d_q24[j], frac_q16);
+  // Member-wise as one loop over the twelve int32 (lerp_q is inlined once, not twelve times);
+  // out may alias lo: each member is read before it is written.
+  static_assert(sizeof(ModelBreakpoint) == 12 * sizeof(int32_t), "ModelBreakpoint: twelve int32, no padding");
+  const uint8_t* l = reinterpret_cast<const uint8_t*>(&lo);
+  const uint8_t* h = reinterpret_cast<const uint8_t*>(&hi);
+  uint8_t* o = reinterpret_cast<uint8_t*>(&out);
+  for (uint8_t k = 0; k < 12; ++k, l += 4, h += 4, o += 4) {
+    int32_t p0, p1;
+    memcpy(&p0, l, 4);
+    memcpy(&p1, h, 4);
+    p0 = detail_rm::lerp_q(p0, p1, frac_q16);
+    memcpy(o, &p0, 4);
   }
 }
 

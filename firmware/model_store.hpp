@@ -349,8 +349,9 @@ class ModelStore {
   }
 
   // The active model's coefficients interpolated at speed_rpm. They are kept until the speed
-  // changes (it rarely does between sweeps) or another model is loaded: reading two breakpoints
-  // from EEPROM and interpolating them cost ~1000 cycles per model step. (The initial state used
+  // changes (it rarely does between sweeps: the tach's dead-band keeps jitter from looking like a
+  // change) or another model is loaded: reading two breakpoints from EEPROM and interpolating
+  // them costs ~4700 cycles (firmware_bench BTSM_BENCH_PROFILE=1, speed-change sweep). (The initial state used
   // to parse and validate the whole blob again, with a 456-byte model on the stack: the deepest
   // stack of the firmware.)
   const ModelBreakpoint& coefficients(const ModelRuntime& rt, uint16_t speed_rpm) {

@@ -144,9 +144,20 @@ ISR(TIMER0_COMPA_vect) { ms_ticks = ms_ticks + 1; }
 
 ISR(TIMER1_OVF_vect) { timer1_high = static_cast<uint16_t>(timer1_high + 1); }
 
+// Tach period between falling edges, with a dead-band of one tick: a period within +-1 tick
+// (+-4 us) of the stored one keeps the stored one. The timestamp of an edge is late by the
+// interrupt latency and rounded down to a tick, so a constant speed reads as period +-1 tick; at
+// 6000 rpm (2500 ticks) that alternated the reported speed between 6000 and 5998 rpm, each
+// alternation a speed change for the model (new coefficients from EEPROM). The dead-band is the
+// measurement's own resolution, rpm^2 * ppr / 15e6: +-2.4 rpm at 6000 rpm, +-0.6 at 3000, +-27 at
+// 20000 (ppr 1) -- far below anything a thermal model of the spindle resolves (its breakpoints
+// are thousands of rpm apart). A genuine change of 2 ticks or more is taken at once.
 ISR(INT0_vect) {
   const uint32_t now = timer1_now();
-  if (tach_seen) tach_period_ticks = now - tach_last_ticks;
+  if (tach_seen) {
+    const uint32_t period = now - tach_last_ticks;
+    if (static_cast<uint32_t>(period - tach_period_ticks + 1) > 2) tach_period_ticks = period;
+  }
   tach_last_ticks = now;
   tach_seen = true;
 }

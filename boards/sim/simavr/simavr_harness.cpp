@@ -286,7 +286,10 @@ bool SimavrHarness::run_until_cycle(uint64_t target) {
   avr_cycle_timer_register(avr_, target - avr_->cycle, &HarnessCallbacks::stop_marker, this);
   bool ok = true;
   while (avr_->cycle < target) {
+    const uint32_t pc = avr_->pc;
+    const uint64_t cycle0 = avr_->cycle, sleep0 = sleep_cycles_;
     const int st = avr_run(avr_);
+    if (profile_) (*profile_)[pc >> 1] += (avr_->cycle - cycle0) - (sleep_cycles_ - sleep0);
     if (st == cpu_Done || st == cpu_Crashed) {
       ok = false;
       break;

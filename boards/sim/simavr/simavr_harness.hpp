@@ -112,6 +112,11 @@ class SimavrHarness {
   void set_eeprom(const std::vector<uint8_t>& image);
   void save_eeprom() const;  // to eeprom_path (no-op if empty); throws on I/O error
 
+  // Cycle profile: while set (and sized flashend/2 + 1), the active cycles of every instruction
+  // are added to the entry of its word address (with the cost of an interrupt entry it triggers;
+  // sleeping cycles are not counted). Null: no per-instruction bookkeeping.
+  void set_profile(std::vector<uint64_t>* cycles_by_word) { profile_ = cycles_by_word; }
+
   // Debug access for wiring tests.
   uint8_t read_data(uint16_t addr) const;
   avr_t* core() { return avr_; }  // for tests that need the raw simavr core
@@ -143,6 +148,7 @@ class SimavrHarness {
   bool tach_level_ = false;
   bool tach_running_ = false;
   uint64_t sleep_cycles_ = 0;
+  std::vector<uint64_t>* profile_ = nullptr;
   HarnessStats counters_;
   uint64_t spi_raise_when_ = 0;
   std::vector<uint8_t> eeprom_init_;

@@ -3,6 +3,9 @@
 // timer-tick load), the resulting CPU duty at the sample period, and the simulated-time speed-up
 // of the simulated module on both boards. Prints figures; asserts nothing about time.
 //   firmware_bench [path/to/btsm-fw-bluno.elf]
+// Environment: BTSM_BENCH_VERBOSE=1 prints every sweep and the speed of every sample;
+// BTSM_BENCH_PROFILE=1 attributes active cycles to the image's functions (by PC, from the ELF
+// symbol table) and prints the top 15 functions of the worst sweep of each measurement (=N: top N).
 #include "boards/sim/ad7794_model.hpp"
 #include "boards/sim/plant/probes.hpp"
 #include "boards/sim/runner/sim_module.hpp"
@@ -18,9 +21,11 @@
 #include <cstdio>
 #include <cstdlib>
 #include <cstring>
+#include <cxxabi.h>
 #include <filesystem>
 #include <fstream>
 #include <map>
+#include <numeric>
 #include <string>
 #include <vector>
 
@@ -59,9 +64,63 @@ SectionSizes elf_sections(const std::string& path) {
   return s;
 }
 
+// Function symbols of an AVR image: a PC belongs to the nearest symbol at or below it (libgcc's
+// assembler routines carry no size, so sizes are not relied on).
+struct SymbolTable {
+  std::vector<std::string> names;      // index 0: "(no symbol)"
+  std::vector<uint32_t> index_by_word;  // flash word address -> index into names
+};
+
+SymbolTable elf_function_symbols(const std::string& path, size_t flash_words) {
+  std::ifstream in(path, std::ios::binary);
+  std::vector<char> f((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
+  Elf32_Ehdr eh;
+  std::memcpy(&eh, f.data(), sizeof eh);
+  std::vector<Elf32_Shdr> sh(eh.e_shnum);
+  std::memcpy(sh.data(), f.data() + eh.e_shoff, sh.size() * sizeof(Elf32_Shdr));
+  std::map<uint32_t, std::string> by_addr;  // one name per address: a FUNC wins over a label
+  for (const auto& h : sh) {
+    if (h.sh_type != SHT_SYMTAB) continue;
+    const char* strtab = f.data() + sh.at(h.sh_link).sh_offset;
+    for (size_t k = 0; k < h.sh_size / sizeof(Elf32_Sym); ++k) {
+      Elf32_Sym sym;
+      std::memcpy(&sym, f.data() + h.sh_offset + k * sizeof(Elf32_Sym), sizeof sym);
+      const int type = ELF32_ST_TYPE(sym.st_info);
+      if ((type != STT_FUNC && type != STT_NOTYPE) || sym.st_shndx == SHN_UNDEF || sym.st_shndx >= sh.size()) continue;
+      if (!(sh[sym.st_shndx].sh_flags & SHF_EXECINSTR) || sym.st_value >= 0x800000) continue;
+      std::string name = strtab + sym.st_name;
+      if (name.empty() || name[0] == '.') continue;
+      if (by_addr.count(sym.st_value) && type != STT_FUNC) continue;
+      int status = 0;
+      if (char* d = abi::__cxa_demangle(name.c_str(), nullptr, nullptr, &status)) {
+        name = d;
+        std::free(d);
+      }
+      by_addr[sym.st_value] = name;
+    }
+  }
+  SymbolTable t;
+  t.names.push_back("(no symbol)");
+  t.index_by_word.assign(flash_words, 0);
+  auto it = by_addr.begin();
+  for (size_t w = 0; w < flash_words; ++w) {
+    while (it != by_addr.end() && it->first <= 2 * w) {
+      t.names.push_back(it->second);
+      ++it;
+    }
+    t.index_by_word[w] = uint32_t(t.names.size() - 1);
+  }
+  return t;
+}
+
+// Sparse per-function active cycles of one 2 ms bin.
+using BinProfile = std::vector<std::pair<uint32_t, uint64_t>>;
+
 struct CycleFigures {
   double sweep_cycles = 0;        // mean active cycles per 5-channel sample cycle, idle load removed
   double sweep_cycles_max = 0;
+  double speed_change_max = -1;   // max over the sweeps that see a new tach frequency (-1: none)
+  std::vector<std::pair<std::string, double>> worst_profile;  // BTSM_BENCH_PROFILE: cycles by function
   double idle_cycles_per_s = 0;   // timer ticks etc. outside sweeps
   int stack_max = -1;             // deepest stack use, B (-1: not measured)
   int stack_margin = -1;          // SRAM between the end of .bss and the deepest stack write, B
@@ -70,21 +129,58 @@ struct CycleFigures {
   uint64_t spi_bytes_per_sweep = 0;
 };
 
-// Runs the image for `seconds` from `start_s` on, in 2 ms bins. A sweep is the stretch from the
-// first to the last SPI byte of a sample period plus 40 ms for the frame to be sent.
-CycleFigures measure_cycles(btsm::sim::SimavrHarness& h, double start_s, double seconds) {
+// A tach frequency change during the measurement, `at_s` after its start.
+struct TachChange {
+  double at_s;
+  double hz;
+};
+
+// Runs the image for `seconds` from `start_s` on, in 2 ms bins, applying `tach` changes. A sweep
+// is the stretch from the first to the last SPI byte of a sample period plus 40 ms for the frame
+// to be sent; a speed-change sweep is the first one that starts after a tach change.
+CycleFigures measure_cycles(btsm::sim::SimavrHarness& h, const std::string& elf, double start_s, double seconds,
+                            const std::vector<TachChange>& tach = {}) {
   const double bin = 0.002;
   std::vector<uint64_t> active, spi;
+  std::vector<int> change_bins;
+  std::vector<size_t> tach_phase;  // per bin: how many tach changes are in effect
+  const bool profiling = std::getenv("BTSM_BENCH_PROFILE") != nullptr;
+  std::vector<uint64_t> by_word;
+  SymbolTable symbols;
+  std::vector<uint64_t> by_symbol;
+  std::vector<BinProfile> bin_profiles;
   h.run_until(start_s);
+  if (profiling) {
+    const size_t words = size_t(h.core()->flashend + 1) / 2;
+    symbols = elf_function_symbols(elf, words);
+    by_word.assign(words, 0);
+    by_symbol.assign(symbols.names.size(), 0);
+    h.set_profile(&by_word);
+  }
   auto last = h.stats();
   const int bins = int(seconds / bin);
+  size_t next_change = 0;
   for (int i = 0; i < bins; ++i) {
+    if (next_change < tach.size() && tach[next_change].at_s <= i * bin) {
+      h.set_tach_hz(tach[next_change++].hz);
+      change_bins.push_back(i);
+    }
+    tach_phase.push_back(next_change);
     h.run_until(start_s + (i + 1) * bin);
     const auto s = h.stats();
     active.push_back(s.active_cycles() - last.active_cycles());
     spi.push_back(s.spi_bytes - last.spi_bytes);
     last = s;
+    if (profiling) {
+      BinProfile p;
+      for (size_t w = 0; w < by_word.size(); ++w)
+        if (by_word[w]) by_symbol[symbols.index_by_word[w]] += by_word[w], by_word[w] = 0;
+      for (size_t k = 0; k < by_symbol.size(); ++k)
+        if (by_symbol[k]) p.push_back({uint32_t(k), by_symbol[k]}), by_symbol[k] = 0;
+      bin_profiles.push_back(std::move(p));
+    }
   }
+  h.set_profile(nullptr);
   // Group SPI activity into sweeps (gaps > 1 s separate sweeps).
   std::vector<std::pair<int, int>> sweeps;
   for (int i = 0; i < bins; ++i) {
@@ -98,24 +194,48 @@ CycleFigures measure_cycles(btsm::sim::SimavrHarness& h, double start_s, double 
     sw.second = std::min(bins - 1, sw.second + tail);
     for (int i = sw.first; i <= sw.second; ++i) in_sweep[size_t(i)] = true;
   }
-  double idle_active = 0;
-  int idle_bins = 0;
+  // The idle load depends on the tach frequency (an interrupt per pulse): each sweep is charged
+  // the idle load measured at its own tach frequency.
+  std::vector<double> idle_active(tach.size() + 1, 0.0);
+  std::vector<int> idle_bins(tach.size() + 1, 0);
   for (int i = 0; i < bins; ++i)
-    if (!in_sweep[size_t(i)]) idle_active += double(active[size_t(i)]), ++idle_bins;
+    if (!in_sweep[size_t(i)]) idle_active[tach_phase[size_t(i)]] += double(active[size_t(i)]), ++idle_bins[tach_phase[size_t(i)]];
   CycleFigures c;
-  c.idle_cycles_per_s = idle_bins ? idle_active / (idle_bins * bin) : 0.0;
+  const int all_idle_bins = std::accumulate(idle_bins.begin(), idle_bins.end(), 0);
+  c.idle_cycles_per_s = all_idle_bins ? std::accumulate(idle_active.begin(), idle_active.end(), 0.0) / (all_idle_bins * bin) : 0.0;
   // Only complete sweeps: the first and last groups may be cut by the ends of the run.
   double sum = 0;
   uint64_t spi_sum = 0;
+  size_t worst = 0;
   for (size_t k = 1; k + 1 < sweeps.size(); ++k) {
     const auto& sw = sweeps[k];
     double a = 0;
     for (int i = sw.first; i <= sw.second; ++i) a += double(active[size_t(i)]), spi_sum += spi[size_t(i)];
-    const double cost = a - c.idle_cycles_per_s * (sw.second - sw.first + 1) * bin;
+    const size_t phase = tach_phase[size_t(sw.first)];
+    const double idle_rate = idle_bins[phase] ? idle_active[phase] / (idle_bins[phase] * bin) : c.idle_cycles_per_s;
+    const double cost = a - idle_rate * (sw.second - sw.first + 1) * bin;
     sum += cost;
-    if (std::getenv("BTSM_BENCH_VERBOSE")) std::printf("   sweep at %.3f s: %.0f cycles\n", start_s + sw.first * bin, cost);
-    c.sweep_cycles_max = std::max(c.sweep_cycles_max, cost);
+    const bool speed_change = std::any_of(change_bins.begin(), change_bins.end(), [&](int b) {
+      return b < sw.first && b > sweeps[k - 1].first;
+    });
+    if (speed_change) c.speed_change_max = std::max(c.speed_change_max, cost);
+    if (std::getenv("BTSM_BENCH_VERBOSE"))
+      std::printf("   sweep at %.3f s: %.0f cycles%s\n", start_s + sw.first * bin, cost, speed_change ? " (speed change)" : "");
+    if (cost > c.sweep_cycles_max) c.sweep_cycles_max = cost, worst = k;
     ++c.sweeps;
+  }
+  if (profiling && worst) {
+    // As the sweep figure: the sweep's bins minus each function's mean idle load over as many bins.
+    const size_t phase = tach_phase[size_t(sweeps[worst].first)];
+    std::map<uint32_t, double> net;
+    for (int i = 0; i < bins; ++i) {
+      if (in_sweep[size_t(i)] && (i < sweeps[worst].first || i > sweeps[worst].second)) continue;
+      if (!in_sweep[size_t(i)] && tach_phase[size_t(i)] != phase) continue;
+      const double w = in_sweep[size_t(i)] ? 1.0 : -double(sweeps[worst].second - sweeps[worst].first + 1) / idle_bins[phase];
+      for (const auto& [sym, cycles] : bin_profiles[size_t(i)]) net[sym] += w * double(cycles);
+    }
+    for (const auto& [sym, cycles] : net) c.worst_profile.push_back({symbols.names[sym], cycles});
+    std::sort(c.worst_profile.begin(), c.worst_profile.end(), [](const auto& x, const auto& y) { return x.second > y.second; });
   }
   if (c.sweeps) {
     c.sweep_cycles = sum / c.sweeps;
@@ -138,11 +258,14 @@ CycleFigures measure_cycles(const std::string& elf, double seconds) {
   o.elf_path = elf;
   btsm::sim::SimavrHarness h(o, &bus);
   h.set_tach_hz(100.0);
-  return measure_cycles(h, 2.0, seconds);  // boot and calibration are not part of the figure
+  return measure_cycles(h, elf, 2.0, seconds);  // boot and calibration are not part of the figure
 }
 
 // The production configuration: the same, with a reduced model uploaded (authenticated, over the
-// UART) and running, so every sweep also steps the model and checks the model's limits.
+// UART) and running, so every sweep also steps the model and checks the model's limits. The
+// spindle changes speed three times, 6000 -> 5400 -> 6600 -> 6000 rpm, between sweeps: the test
+// model's breakpoints are 0 and 6000 rpm, so 5400 rpm needs both breakpoints read and
+// interpolated (the costliest refresh), 6600 rpm holds the top one and 6000 rpm is on it.
 CycleFigures measure_cycles_with_model(const std::string& elf, double seconds, int ram_bytes) {
   setenv("BTSM_FW_ELF", elf.c_str(), 1);  // btsm::test::firmware_elf()
   btsm::test::AvrLink l;
@@ -162,7 +285,8 @@ CycleFigures measure_cycles_with_model(const std::string& elf, double seconds, i
     return CycleFigures();
   }
   if (std::getenv("BTSM_BENCH_VERBOSE")) std::printf("   model committed at %.3f s\n", l.h->time_s());
-  CycleFigures c = measure_cycles(*l.h, std::max(2.0, l.h->time_s() + 0.5), seconds);
+  const std::vector<TachChange> changes = {{11.0, 90.0}, {21.0, 110.0}, {31.0, 100.0}};
+  CycleFigures c = measure_cycles(*l.h, elf, std::max(2.0, l.h->time_s() + 0.5), seconds, changes);
   if (std::getenv("BTSM_BENCH_VERBOSE")) {
     l.step(0.0);
     for (const auto& smp : l.capture().samples) std::printf("   sample t %.3f s speed %u rpm\n", smp.time_ms * 1e-3, smp.speed_rpm);
@@ -185,6 +309,14 @@ void print_cycles(const CycleFigures& c) {
     std::printf("   sample period %.2f s: sweep duty %.4f %%, with the idle load %.3f %% (target < 1 %%: %s)\n",
                 c.period_s, 100.0 * sweep_duty, 100.0 * (sweep_duty + c.idle_cycles_per_s / 16e6),
                 sweep_duty + c.idle_cycles_per_s / 16e6 < 0.01 ? "met" : "NOT met");
+  }
+  if (c.speed_change_max >= 0)
+    std::printf("   sweeps that see a new tach speed: max %.0f cycles (included in the max above)\n", c.speed_change_max);
+  if (!c.worst_profile.empty()) {
+    std::printf("   profile of the worst sweep (active cycles by function, idle tick load removed):\n");
+    const int top = std::max(15, std::atoi(std::getenv("BTSM_BENCH_PROFILE")));
+    for (size_t k = 0; k < c.worst_profile.size() && k < size_t(top); ++k)
+      std::printf("   %8.0f  %s\n", c.worst_profile[k].second, c.worst_profile[k].first.c_str());
   }
   if (c.stack_max >= 0)
     std::printf("   deepest stack (upload, model start-up, sweeps, interrupts): %d B, never touched %d B"

@@ -72,6 +72,29 @@ TEST_F(AvrModule, TachSpeedReachesTheFirmware) {
   EXPECT_GE(checked, 8);
 }
 
+// The tach's dead-band: a constant pulse rate reads as one constant speed although interrupt
+// latency moves the edges' timestamps by a tick (6000 rpm alternated with 5998 before), also at a
+// rate between two tick counts (110 Hz = 2272.7 ticks: 6602 or 6599 rpm, whichever comes first).
+TEST_F(AvrModule, ConstantTachRateReadsAsOneSpeed) {
+  AvrLink l;
+  l.h->set_tach_hz(100.0);
+  l.step(40.0);
+  l.h->set_tach_hz(110.0);
+  l.step(40.0);
+  std::vector<uint16_t> at100, at110;
+  for (const auto& s : l.capture().samples) {
+    const double t = s.time_ms * 1e-3;
+    if (t > 2 && t < 39) at100.push_back(s.speed_rpm);
+    if (t > 42 && t < 79) at110.push_back(s.speed_rpm);
+  }
+  ASSERT_GE(at100.size(), 6u);
+  ASSERT_GE(at110.size(), 6u);
+  for (uint16_t v : at100) EXPECT_EQ(v, 6000);
+  EXPECT_GE(at110.front(), 6599);
+  EXPECT_LE(at110.front(), 6602);
+  for (uint16_t v : at110) EXPECT_EQ(v, at110.front());
+}
+
 TEST_F(AvrModule, AnswersGetInfoOverTheUart) {
   SimLink l(avr_options("1h@0"));
   l.step(1.0);

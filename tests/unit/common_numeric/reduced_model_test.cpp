@@ -338,6 +338,17 @@ TEST(ReducedModelEval, InterpolationFractionAndSegments) {
   EXPECT_NEAR(p.a_q30, (static_cast<int64_t>(m.bp[2].a_q30) + m.bp[3].a_q30) / 2, 1);
 }
 
+// The 16-step division of the interpolation fraction is the exact floor(n 2^16 / d) for n < d.
+TEST(ReducedModelEval, FractionDivisionIsExact) {
+  std::mt19937_64 g(11);
+  for (int i = 0; i < 1000000; ++i) {
+    const uint16_t d = static_cast<uint16_t>(1 + g() % 65535);
+    uint16_t n = static_cast<uint16_t>(g() % d);
+    if (i % 4 == 0) n = static_cast<uint16_t>(d - 1 - g() % 3 % d);  // fractions close to 1
+    ASSERT_EQ(detail_rm::fraction_q16(n, d), (static_cast<uint32_t>(n) << 16) / d) << n << " / " << d;
+  }
+}
+
 TEST(ReducedModelEval, SettlesToSteadyStateAtABreakpoint) {
   const ReducedModel m = quantized_spindle();
   ReducedModelState st;
