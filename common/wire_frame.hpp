@@ -87,66 +87,6 @@ inline bool write_frame(Sink& sink, uint8_t type, uint8_t seq, const uint8_t* pa
   return true;
 }
 
-// Resumable encoder for a sink that may refuse bytes (the MCU's UART ring, smaller than a frame):
-// the frame goes out over several calls without a frame buffer and without re-encoding the bytes
-// already sent; the CRC is accumulated as the bytes go out (one pass over the payload). The wire
-// bytes are exactly write_frame's.
-//   FrameCursor c; start_frame(c);   then, until it returns true:
-//   resume_frame(put, c, type, seq, payload, len)  (put(uint8_t) -> bool, false = byte refused)
-// type, seq and the payload must stay unchanged until the frame is complete.
-struct FrameCursor {
-  uint16_t crc;  // CRC-16 over the raw bytes sent so far (version..payload)
-  uint8_t pos;   // next item: 0 = opening flag, 1..n = raw byte pos - 1, n + 1 = closing flag
-  bool escaped;  // the ESC of raw byte pos - 1 is already out, its second byte is not
-};
-
-inline void start_frame(FrameCursor& c) {
-  c.crc = 0xFFFF;
-  c.pos = 0;
-  c.escaped = false;
-}
-
-// Returns true once the closing flag is out (len must be <= kMaxPayload).
-template <class Put>
-inline bool resume_frame(Put& put, FrameCursor& c, uint8_t type, uint8_t seq, const uint8_t* payload,
-                         uint8_t len) {
-  const uint8_t body = static_cast<uint8_t>(kHeaderSize + len);
-  const uint8_t n = static_cast<uint8_t>(body + kCrcSize);
-  uint8_t pos = c.pos;
-  uint16_t crc = c.crc;
-  bool done = false;
-  for (;;) {
-    uint8_t raw = kFlag;
-    uint8_t b = kFlag;
-    if (pos != 0 && pos <= n) {
-      const uint8_t i = static_cast<uint8_t>(pos - 1);
-      if (i >= kHeaderSize) {
-        raw = i < body ? payload[i - kHeaderSize] : static_cast<uint8_t>(i == body ? crc : crc >> 8);
-      } else {
-        raw = i == 0 ? kProtocolVersion : i == 1 ? type : i == 2 ? seq : len;
-      }
-      b = raw;
-      if (needs_escape(raw)) {
-        if (!c.escaped) {
-          if (!put(kEsc)) break;
-          c.escaped = true;
-        }
-        b = static_cast<uint8_t>(raw ^ kEscXor);
-      }
-    }
-    if (!put(b)) break;
-    c.escaped = false;
-    if (pos != 0 && pos <= body) crc = crc16_ccitt_byte(crc, raw);
-    if (pos++ > n) {
-      done = true;
-      break;
-    }
-  }
-  c.pos = pos;
-  c.crc = crc;
-  return done;
-}
-
 // Raw-buffer encoder (the MCU's): the message encoder writes the payload straight into
 // raw + kHeaderSize of a kMaxRawFrame buffer, seal_raw_frame() adds the header and the CRC in
 // place (one tight CRC pass), and resume_stuffed() streams FLAG, the stuffed raw bytes, FLAG into
@@ -154,19 +94,25 @@ inline bool resume_frame(Put& put, FrameCursor& c, uint8_t type, uint8_t seq, co
 //   n = seal_raw_frame(raw, type, seq, len); StuffCursor c; start_stuffed(c);
 //   until resume_stuffed(put, c, raw, n) returns true   (raw unchanged meanwhile)
 // Same wire bytes as write_frame; per byte a load, the escape test and the sink call (on the AVR
-// ~45 cycles a byte with the ring write, against ~77 for resume_frame's per-byte dispatch and CRC).
-// Returns the raw size (header + len + CRC), or 0 if len > kMaxPayload.
-inline uint8_t seal_raw_frame(uint8_t* raw, uint8_t type, uint8_t seq, uint8_t len) {
-  if (len > kMaxPayload) return 0;
-  raw[0] = kProtocolVersion;
+// ~45 cycles a byte with the ring write, against ~77 for an encoder that builds each byte and
+// its CRC on the fly).
+namespace detail {
+// Header and CRC around a payload already at raw + kHeaderSize (len <= kMaxPayload).
+inline uint8_t seal(uint8_t* raw, uint8_t version, uint8_t type, uint8_t seq, uint8_t len) {
+  raw[0] = version;
   raw[1] = type;
   raw[2] = seq;
   raw[3] = len;
   const uint8_t body = static_cast<uint8_t>(kHeaderSize + len);
-  const uint16_t crc = crc16_ccitt(raw, body);
-  raw[body] = static_cast<uint8_t>(crc);
-  raw[body + 1] = static_cast<uint8_t>(crc >> 8);
+  put_le16(raw + body, crc16_ccitt(raw, body));
   return static_cast<uint8_t>(body + kCrcSize);
+}
+}  // namespace detail
+
+// Returns the raw size (header + len + CRC), or 0 if len > kMaxPayload.
+inline uint8_t seal_raw_frame(uint8_t* raw, uint8_t type, uint8_t seq, uint8_t len) {
+  if (len > kMaxPayload) return 0;
+  return detail::seal(raw, kProtocolVersion, type, seq, len);
 }
 
 struct StuffCursor {
@@ -217,14 +163,8 @@ inline bool resume_stuffed(Put& put, StuffCursor& c, const uint8_t* raw, uint8_t
 inline size_t build_raw_frame(uint8_t version, uint8_t type, uint8_t seq, const uint8_t* payload,
                               uint8_t len, uint8_t* raw) {
   if (len > kMaxPayload || (len > 0 && payload == nullptr)) return 0;
-  raw[0] = version;
-  raw[1] = type;
-  raw[2] = seq;
-  raw[3] = len;
   for (uint8_t i = 0; i < len; ++i) raw[kHeaderSize + i] = payload[i];
-  const size_t body = static_cast<size_t>(kHeaderSize) + len;
-  put_le16(raw + body, crc16_ccitt(raw, body));
-  return body + kCrcSize;
+  return detail::seal(raw, version, type, seq, len);
 }
 
 // Sink that fills a caller buffer and remembers whether it ran out of room.

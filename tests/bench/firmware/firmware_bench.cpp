@@ -10,11 +10,11 @@
 #include "boards/sim/plant/probes.hpp"
 #include "boards/sim/runner/sim_module.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
+#include "tests/bench/firmware/stack_paint.hpp"
 #include "tests/hil/sim/model_upload.hpp"
 #include "tests/simavr/sim/avr_link.hpp"
 
 #include <elf.h>
-#include <simavr/sim_avr.h>
 
 #include <algorithm>
 #include <chrono>
@@ -276,9 +276,7 @@ CycleFigures measure_cycles_with_model(const std::string& elf, double seconds, i
   // with the model, interrupts): paint the free SRAM below the current stack pointer, scan after.
   avr_t* core = l.h->core();
   const int bss_end = 0x100 + ram_bytes;
-  const int ramend = 0x8FF;
-  const int sp = core->data[0x5D] | (core->data[0x5E] << 8);
-  for (int a = bss_end; a < sp - 1; ++a) core->data[a] = 0xA5;
+  btsm::bench::paint_sram(core, bss_end, btsm::bench::stack_pointer(core) - 1);
   uint8_t seq = 0;
   if (btsm::test::upload_model(l, btsm::test::spindle_model_blob(0), seq) != 0) {
     std::printf("   model upload failed\n");
@@ -291,10 +289,9 @@ CycleFigures measure_cycles_with_model(const std::string& elf, double seconds, i
     l.step(0.0);
     for (const auto& smp : l.capture().samples) std::printf("   sample t %.3f s speed %u rpm\n", smp.time_ms * 1e-3, smp.speed_rpm);
   }
-  int deepest = bss_end;
-  while (deepest <= ramend && core->data[deepest] == 0xA5) ++deepest;
-  c.stack_max = ramend - deepest + 1;
-  c.stack_margin = deepest - bss_end;
+  const btsm::bench::StackDepth depth = btsm::bench::stack_depth(core, bss_end);
+  c.stack_max = depth.max_use;
+  c.stack_margin = depth.margin;
   return c;
 }
 

@@ -18,6 +18,7 @@
 #include "common/wire_frame.hpp"
 #include "common/wire_messages.hpp"
 #include "firmware/device_key.hpp"
+#include "tests/bench/firmware/stack_paint.hpp"
 #include "tests/unit/firmware/test_support.hpp"  // model_blob()
 
 static std::vector<uint8_t> out_bytes;
@@ -40,7 +41,7 @@ int main(int argc, char** argv) {
   for (int i = 0; i < 32; ++i) key[i] = i;
   btsm::device_key::build_record(rec, 0xDE70, key);
   memcpy(avr->flash + btsm::device_key::kFlashAddress, rec, 64);
-  for (int a = 0x100; a <= 0x8FF; ++a) avr->data[a] = 0xA5;
+  btsm::bench::paint_sram(avr, 0x100, btsm::bench::kRamEnd + 1);
   uint32_t f = 0;
   avr_ioctl(avr, AVR_IOCTL_UART_GET_FLAGS('0'), &f);
   f &= ~AVR_UART_FLAG_STDIO;
@@ -88,23 +89,15 @@ int main(int argc, char** argv) {
   std::vector<uint8_t> p;
   send(btsm::wire::MsgType::GetInfo, 1, {});
   printf("INFO: %d\n", wait_frame(0x02, p));
-  {
-    const int bss_end = bss_end_addr;
-    int d = bss_end;
-    while (d <= 0x8FF && avr->data[d] == 0xA5) ++d;
-    printf("before upload: max stack use %d bytes\n", 0x8FF - d + 1);
-  }
+  auto depth = [&](const char* what) {
+    printf("%s: max stack use %d bytes\n", what, btsm::bench::stack_depth(avr, bss_end_addr).max_use);
+  };
+  depth("before upload");
   auto blob = btsm::test::model_blob();
   std::vector<uint8_t> b(6);
   btsm::put_le16(b.data(), uint16_t(blob.size()));
   btsm::put_le32(b.data() + 2, btsm::crc32(blob.data(), blob.size()));
   send(btsm::wire::MsgType::ModelBegin, 2, b);
-  auto depth = [&](const char* what) {
-    const int bss_end = bss_end_addr;
-    int d = bss_end;
-    while (d <= 0x8FF && avr->data[d] == 0xA5) ++d;
-    printf("%s: max stack use %d bytes\n", what, 0x8FF - d + 1);
-  };
   std::vector<uint8_t> nonce;
   printf("CHALLENGE: %d\n", wait_frame(0x04, nonce));
   depth("after MODEL_BEGIN");
@@ -135,26 +128,19 @@ int main(int argc, char** argv) {
   printf("model_seq %u state %u samples-bytes %zu\n", info.model_seq, info.model_state, out_bytes.size());
   {
     // Repaint the free region and reboot: measures boot with a stored model (load + validate).
-    const int be = bss_end_addr;
-    const int sp = avr->data[0x5D] | (avr->data[0x5E] << 8);
-    for (int a2 = be; a2 < sp - 4; ++a2) avr->data[a2] = 0xA5;
+    btsm::bench::paint_sram(avr, bss_end_addr, btsm::bench::stack_pointer(avr) - 4);
     send(btsm::wire::MsgType::Reboot, seq++, {});
     wait_frame(0x03, p);
     run_ms(12000);
-    int d = be;
-    while (d <= 0x8FF && avr->data[d] == 0xA5) ++d;
-    printf("reboot with a stored model + 12 s of sweeps: max stack use %d bytes\n", 0x8FF - d + 1);
+    depth("reboot with a stored model + 12 s of sweeps");
     send(btsm::wire::MsgType::GetInfo, seq++, {});
     wait_frame(0x02, p);
     btsm::wire::decode_info(p.data(), uint8_t(p.size()), info);
     printf("after reboot: model_seq %u state %u resets %u\n", info.model_seq, info.model_state, info.resets);
   }
-  const int bss_end = bss_end_addr;
-  int deepest = bss_end;
-  while (deepest <= 0x8FF && avr->data[deepest] == 0xA5) ++deepest;
-  const int margin = deepest - bss_end;
+  const btsm::bench::StackDepth d = btsm::bench::stack_depth(avr, bss_end_addr);
   printf("end of .bss 0x%x, deepest stack write 0x%x: max stack use %d bytes, untouched margin %d bytes "
          "(target >= 64: %s)\n",
-         bss_end, deepest, 0x8FF - deepest + 1, margin, margin >= 64 ? "met" : "NOT met");
+         bss_end_addr, d.deepest_write, d.max_use, d.margin, d.margin >= 64 ? "met" : "NOT met");
   return 0;
 }

@@ -36,6 +36,25 @@ struct ModuleOnPty {
   }
 };
 
+// A fake module streaming a sample every 2 ms, identified, and record options writing a CSV into
+// a temporary folder (no reconnect).
+struct RecordSetup {
+  ModuleOnPty m;
+  test::TempDir dir;
+  std::string path;
+  ModuleIdentity id;
+  RecordOptions ro;
+  explicit RecordSetup(FakeModuleOptions o = streaming()) : m(o), path(dir.path + "/rec.csv"), id(identify(m.session)) {
+    ro.out_path = path;
+    ro.reconnect_s = 0;
+  }
+  static FakeModuleOptions streaming() {
+    FakeModuleOptions o;
+    o.sample_period = Millis(2);
+    return o;
+  }
+};
+
 }  // namespace
 
 TEST(SampleTracker, ReportsGapsRestartsAndDuplicates) {
@@ -130,19 +149,14 @@ TEST(SerialTransport, MissingDeviceAndHangUpAreClearErrors) {
 }
 
 TEST(Record, WritesCsvThatReadsBackSampleForSample) {
-  FakeModuleOptions o;
-  o.sample_period = Millis(2);
+  FakeModuleOptions o = RecordSetup::streaming();
   o.first_sample_index = 100;
-  ModuleOnPty m(o);
-  test::TempDir dir;
-  const std::string path = dir.path + "/rec.csv";
-  const ModuleIdentity id = identify(m.session);
-  EXPECT_TRUE(id.roles.from_module);
-  RecordOptions ro;
-  ro.out_path = path;
-  ro.max_samples = 40;
-  ro.reconnect_s = 0;
-  const RecordSummary sum = record(m.session, id, ro);
+  RecordSetup r(o);
+  auto& m = r.m;
+  const std::string& path = r.path;
+  EXPECT_TRUE(r.id.roles.from_module);
+  r.ro.max_samples = 40;
+  const RecordSummary sum = record(m.session, r.id, r.ro);
   EXPECT_EQ(sum.rows, 40u);
   EXPECT_EQ(sum.lost, 0u);
 
@@ -174,51 +188,35 @@ TEST(Record, WritesCsvThatReadsBackSampleForSample) {
 // A module that falls silent ends the recording with an error, but the rows already written stay,
 // and the summary lines say why it ended.
 TEST(Record, LostLinkKeepsTheRowsAndWritesTheReason) {
-  FakeModuleOptions o;
-  o.sample_period = Millis(2);
-  ModuleOnPty m(o);
-  test::TempDir dir;
-  const std::string path = dir.path + "/rec.csv";
-  const ModuleIdentity id = identify(m.session);
-  RecordOptions ro;
-  ro.out_path = path;
-  ro.reconnect_s = 0;
-  ro.sample_timeout_s = 0.5;
-  ro.progress = [&](const RecordProgress& p) {
-    if (p.rows == 15) m.module.set_streaming(false);
+  RecordSetup r;
+  r.ro.sample_timeout_s = 0.5;
+  r.ro.progress = [&](const RecordProgress& p) {
+    if (p.rows == 15) r.m.module.set_streaming(false);
   };
-  EXPECT_THROW(record(m.session, id, ro), LinkError);
-  const thermal::Recording rec = thermal::read_recording_csv(path);
+  EXPECT_THROW(record(r.m.session, r.id, r.ro), LinkError);
+  const thermal::Recording rec = thermal::read_recording_csv(r.path);
   EXPECT_GE(rec.rows(), 15u);
   EXPECT_EQ(rec.meta_value("stop_reason").rfind("link lost: ", 0), 0u) << rec.meta_value("stop_reason");
   EXPECT_EQ(rec.meta_value("samples"), std::to_string(rec.rows()));
 }
 
 TEST(Record, GapsBecomeDroppedLinesAndNeverRows) {
-  FakeModuleOptions o;
-  o.sample_period = Millis(2);
-  ModuleOnPty m(o);
-  test::TempDir dir;
-  const std::string path = dir.path + "/rec.csv";
-  const ModuleIdentity id = identify(m.session);
+  RecordSetup r;
   // Lose samples on purpose: read a few, stop reading while the module streams on, then record.
   // The pty buffer keeps everything, so instead simulate loss with a module restart: the tracker
   // sees the index go back and reports the restart; time stays increasing.
-  RecordOptions ro;
-  ro.out_path = path;
-  ro.max_samples = 30;
-  ro.reconnect_s = 0;
+  r.ro.max_samples = 30;
   std::atomic<bool> restarted{false};
-  ro.progress = [&](const RecordProgress& p) {
+  r.ro.progress = [&](const RecordProgress& p) {
     if (p.rows == 10 && !restarted) {
-      m.module.restart();
+      r.m.module.restart();
       restarted = true;
     }
   };
-  const RecordSummary sum = record(m.session, id, ro);
+  const RecordSummary sum = record(r.m.session, r.id, r.ro);
   EXPECT_EQ(sum.rows, 30u);
   EXPECT_EQ(sum.restarts, 1u);
-  const thermal::Recording rec = thermal::read_recording_csv(path);  // throws on non-increasing time
+  const thermal::Recording rec = thermal::read_recording_csv(r.path);  // throws on non-increasing time
   EXPECT_EQ(rec.rows(), 30u);
   EXPECT_EQ(rec.meta_value("module_restarts"), "1");
 }
