@@ -302,22 +302,6 @@ class ModelStore {
     for (uint8_t i = 0; i < n; ++i) out[i] = storage_.read(static_cast<uint16_t>(addr + i));
   }
 
-  void read_breakpoint(uint8_t i, ModelBreakpoint& bp) const {
-    const uint16_t addr =
-        static_cast<uint16_t>(eeprom_layout::blob_addr(active_slot_) + kBlobOffBreakpoints + kBlobBreakpointSize * i);
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
-    // The blob's breakpoint is the struct's twelve little-endian int32 in member order: on a
-    // little-endian MCU the bytes go straight into it (no buffer, no decode: ~600 cycles per step).
-    static_assert(sizeof(ModelBreakpoint) == kBlobBreakpointSize && offsetof(ModelBreakpoint, d_q24) == 28,
-                  "ModelBreakpoint layout must be the blob's");
-    read_bytes(addr, reinterpret_cast<uint8_t*>(&bp), kBlobBreakpointSize);
-#else
-    uint8_t buf[kBlobBreakpointSize];
-    read_bytes(addr, buf, kBlobBreakpointSize);
-    decode_breakpoint(buf, bp);
-#endif
-  }
-
   BTSM_NOINLINE uint32_t slot_crc(const uint8_t* seq_le) const {
     uint32_t crc = crc32(seq_le, 4);
     for (uint16_t i = 0; i < eeprom_layout::kBlobSize; ++i) {
@@ -350,22 +334,48 @@ class ModelStore {
 
   // The active model's coefficients interpolated at speed_rpm. They are kept until the speed
   // changes (it rarely does between sweeps: the tach's dead-band keeps jitter from looking like a
-  // change) or another model is loaded: reading two breakpoints from EEPROM and interpolating
-  // them costs ~4700 cycles (firmware_bench BTSM_BENCH_PROFILE=1, speed-change sweep). (The initial state used
-  // to parse and validate the whole blob again, with a 456-byte model on the stack: the deepest
-  // stack of the firmware.)
+  // change) or another model is loaded. (The initial state used to parse and validate the whole
+  // blob again, with a 456-byte model on the stack: the deepest stack of the firmware.)
   const ModelBreakpoint& coefficients(const ModelRuntime& rt, uint16_t speed_rpm) {
-    if (speed_rpm != coeff_speed_rpm_) {
-      const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
-      read_breakpoint(seg.lo, coeff_);
-      if (seg.frac_q16 != 0) {  // else at a breakpoint: the other one need not be read
-        ModelBreakpoint hi;
-        read_breakpoint(seg.hi, hi);
-        interpolate(coeff_, hi, seg.frac_q16, coeff_);  // member-wise: out may alias lo
-      }
-      coeff_speed_rpm_ = speed_rpm;
-    }
+    if (speed_rpm != coeff_speed_rpm_) refresh_coefficients(rt, speed_rpm);
     return coeff_;
+  }
+
+  // Reads breakpoint lo straight into the cache and, inside a segment, interpolates towards
+  // breakpoint hi member by member as its bytes come from EEPROM (common interpolate() does the
+  // same per member: the same integers), without a second 48-byte buffer. Only the members the
+  // model step reads are interpolated: a, b, and c, d of the channels that are enabled and not the
+  // ambient one (step_with and init_from_measurement_with skip the others, which keep lo's value).
+  BTSM_NOINLINE void refresh_coefficients(const ModelRuntime& rt, uint16_t speed_rpm) {
+    static_assert(sizeof(ModelBreakpoint) == kBlobBreakpointSize && offsetof(ModelBreakpoint, c_q24) == 8 &&
+                      offsetof(ModelBreakpoint, d_q24) == 8 + 4 * kModelChannels,
+                  "ModelBreakpoint must be the blob's twelve little-endian int32 in member order");
+    static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "breakpoints are read as little-endian int32");
+    const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
+    const uint16_t first = static_cast<uint16_t>(eeprom_layout::blob_addr(active_slot_) + kBlobOffBreakpoints);
+    uint8_t* out = reinterpret_cast<uint8_t*>(&coeff_);
+    read_bytes(static_cast<uint16_t>(first + kBlobBreakpointSize * seg.lo), out, kBlobBreakpointSize);
+    if (seg.frac_q16 != 0) {
+      // Bit k: member k is needed (0 a, 1 b, 2 + j c_j, 2 + kModelChannels + j d_j).
+      uint8_t channels = static_cast<uint8_t>(rt.enabled_mask & 0x1FU);
+      if (rt.ambient_channel < kModelChannels) channels = static_cast<uint8_t>(channels & ~(1U << rt.ambient_channel));
+      uint16_t needed = static_cast<uint16_t>(3U | (static_cast<uint16_t>(channels) << 2) |
+                                              (static_cast<uint16_t>(channels) << (2 + kModelChannels)));
+      uint16_t hi = static_cast<uint16_t>(first + kBlobBreakpointSize * seg.hi);
+      for (uint8_t k = 0; k < 12; ++k, hi += 4, out += 4, needed >>= 1) {
+        if ((needed & 1U) == 0) continue;
+        union {
+          int32_t v;
+          uint8_t b[4];
+        } p1;
+        for (uint8_t i = 0; i < 4; ++i) p1.b[i] = storage_.read(static_cast<uint16_t>(hi + i));
+        int32_t p0;
+        memcpy(&p0, out, 4);
+        p0 = detail_rm::lerp_q(p0, p1.v, seg.frac_q16);
+        memcpy(out, &p0, 4);
+      }
+    }
+    coeff_speed_rpm_ = speed_rpm;
   }
 
   // Validates the slot and copies the schedule and limits (false: slot invalid, rt untouched).

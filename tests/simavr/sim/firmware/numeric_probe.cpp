@@ -1,0 +1,75 @@
+// Numeric probe: the common/ kernels that have an AVR-only form (inline assembly), run on the
+// ATmega328P in simavr so tests/simavr/sim/avr_numeric_test.cpp can compare them with the host
+// form on the same operands. Built with the firmware's compiler (avr-g++ 5.4, C++14).
+//
+// Commands over the UART (115200 8N1, little-endian operands), one reply per command:
+//   'M' d:u32 f:u16          -> 'M' high:u32 low:u16   detail_rm::mul_u32_u16(d, f)
+//   'L' p0:i32 p1:i32 f:u16  -> 'L' r:i32              detail_rm::lerp_q(p0, p1, f)
+// At boot it sends 'B'. Unknown command bytes are answered with '?'.
+#include <avr/io.h>
+#include <stdint.h>
+
+#include "common/reduced_model.hpp"
+
+namespace {
+
+uint8_t get_byte() {
+  while (!(UCSR0A & (1 << RXC0))) {
+  }
+  return UDR0;
+}
+
+void put_byte(uint8_t b) {
+  while (!(UCSR0A & (1 << UDRE0))) {
+  }
+  UDR0 = b;
+}
+
+uint32_t get_u32() {
+  uint32_t v = 0;
+  for (uint8_t i = 0; i < 4; ++i) v |= static_cast<uint32_t>(get_byte()) << (8 * i);
+  return v;
+}
+
+uint16_t get_u16() {
+  const uint16_t lo = get_byte();
+  return static_cast<uint16_t>(lo | static_cast<uint16_t>(get_byte()) << 8);
+}
+
+void put_u32(uint32_t v) {
+  for (uint8_t i = 0; i < 4; ++i) put_byte(static_cast<uint8_t>(v >> (8 * i)));
+}
+
+}  // namespace
+
+int main() {
+  // 115200 8N1 at 16 MHz with U2X: UBRR = 16.
+  UCSR0A = 1 << U2X0;
+  UBRR0H = 0;
+  UBRR0L = 16;
+  UCSR0B = (1 << RXEN0) | (1 << TXEN0);
+  UCSR0C = (1 << UCSZ01) | (1 << UCSZ00);
+  put_byte('B');
+  for (;;) {
+    const uint8_t cmd = get_byte();
+    if (cmd == 'M') {
+      const uint32_t d = get_u32();
+      const uint16_t f = get_u16();
+      uint32_t high = 0;
+      uint16_t low = 0;
+      btsm::detail_rm::mul_u32_u16(d, f, high, low);
+      put_byte('M');
+      put_u32(high);
+      put_byte(static_cast<uint8_t>(low));
+      put_byte(static_cast<uint8_t>(low >> 8));
+    } else if (cmd == 'L') {
+      const int32_t p0 = static_cast<int32_t>(get_u32());
+      const int32_t p1 = static_cast<int32_t>(get_u32());
+      const uint16_t f = get_u16();
+      put_byte('L');
+      put_u32(static_cast<uint32_t>(btsm::detail_rm::lerp_q(p0, p1, f)));
+    } else {
+      put_byte('?');
+    }
+  }
+}
