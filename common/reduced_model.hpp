@@ -560,8 +560,8 @@ inline int64_t round_shift(int64_t v, int s) {
 // The 48-bit product d * f as its upper 32 bits (d * f) >> 16 and its low 16 bits. On the AVR
 // eight hardware 8 x 8 multiplications in place (~45 cycles): avr-gcc 5.4 compiles the portable
 // form into two __umulhisi3 calls whose 32-bit operands and results it spills to the stack
-// (~330 cycles per interpolated coefficient). tests/simavr/sim/avr_numeric_test.cpp checks the
-// AVR form against this file's portable one on the real target (simavr).
+// (~330 cycles per interpolated coefficient). The host never compiles the assembly:
+// tests/simavr/sim/avr_numeric_test.cpp runs it on the simulated ATmega328P against exact results.
 BTSM_RM_INLINE void mul_u32_u16(uint32_t d, uint16_t f, uint32_t& high, uint16_t& low) {
 #if defined(__AVR__)
   uint32_t h;

@@ -49,31 +49,36 @@ class AvrNumeric : public ::testing::Test {
   static void put32(std::vector<uint8_t>& b, uint32_t v) {
     for (int i = 0; i < 4; ++i) b.push_back(uint8_t(v >> (8 * i)));
   }
+  static void put16(std::vector<uint8_t>& b, uint16_t v) {
+    b.push_back(uint8_t(v));
+    b.push_back(uint8_t(v >> 8));
+  }
   static uint32_t get32(const uint8_t* p) { return p[0] | p[1] << 8 | p[2] << 16 | uint32_t(p[3]) << 24; }
 
+  // Sends one command (its letter, then the operands) and returns the reply's operand bytes
+  // (empty when the probe did not answer with the same letter and n bytes).
+  std::vector<uint8_t> exchange(const std::vector<uint8_t>& cmd, size_t n) {
+    rx.clear();
+    h->uart_send(cmd.data(), cmd.size());
+    EXPECT_TRUE(reply(1 + n)) << "no reply to " << char(cmd[0]);
+    if (rx.size() < 1 + n || rx[0] != cmd[0]) return {};
+    return std::vector<uint8_t>(rx.begin() + 1, rx.begin() + long(1 + n));
+  }
   int32_t avr_lerp(int32_t p0, int32_t p1, uint16_t f) {
     std::vector<uint8_t> cmd{'L'};
     put32(cmd, uint32_t(p0));
     put32(cmd, uint32_t(p1));
-    cmd.push_back(uint8_t(f));
-    cmd.push_back(uint8_t(f >> 8));
-    rx.clear();
-    h->uart_send(cmd.data(), cmd.size());
-    EXPECT_TRUE(reply(5)) << "no reply to L";
-    EXPECT_EQ(rx.size() >= 1 ? rx[0] : 0, 'L');
-    return rx.size() >= 5 ? int32_t(get32(&rx[1])) : 0;
+    put16(cmd, f);
+    const auto r = exchange(cmd, 4);
+    return r.empty() ? 0 : int32_t(get32(r.data()));
   }
   void avr_mul(uint32_t d, uint16_t f, uint32_t& high, uint16_t& low) {
     std::vector<uint8_t> cmd{'M'};
     put32(cmd, d);
-    cmd.push_back(uint8_t(f));
-    cmd.push_back(uint8_t(f >> 8));
-    rx.clear();
-    h->uart_send(cmd.data(), cmd.size());
-    EXPECT_TRUE(reply(7)) << "no reply to M";
-    EXPECT_EQ(rx.size() >= 1 ? rx[0] : 0, 'M');
-    high = rx.size() >= 7 ? get32(&rx[1]) : 0;
-    low = rx.size() >= 7 ? uint16_t(rx[5] | rx[6] << 8) : 0;
+    put16(cmd, f);
+    const auto r = exchange(cmd, 6);
+    high = r.empty() ? 0 : get32(r.data());
+    low = r.empty() ? 0 : uint16_t(r[4] | r[5] << 8);
   }
 
   std::unique_ptr<SimavrHarness> h;
