@@ -6,7 +6,7 @@
 //
 // Per sweep and enabled channel:
 //   1. channel configuration -- for AIN4..AIN6, which share one calibration pair on the chip,
-//      also idle mode and this channel's pair (restored from RAM); AIN1..AIN3 keep their own --
+//      also this channel's pair (restored from RAM); AIN1..AIN3 keep their own --
 //      single conversion at the configured FS, wait RDY
 //   2. same channel (calibration pair left in place) with the burnout currents on, single
 //      conversion at FS 1 (4 ms): an open input is driven to full scale (ERR) -- a healthy one
@@ -139,7 +139,7 @@ class Acquisition {
         state_ = kStart;
         return 0;
       case kCalStart:
-        adc_.prepare_channel(channel_config(channel_, false), setup_.fs, 0);
+        adc_.prepare_channel(channel_config(channel_, false), setup_.fs);
         begin_wait(ad7794::kModeInternalZeroCal, setup_.fs, now_ms, ad7794::settle_ms(setup_.fs));
         state_ = kCalZeroWait;
         return wait_budget(now_ms);
@@ -195,8 +195,8 @@ class Acquisition {
         // Same channel with the burnout currents on: only the configuration changes (its
         // calibration pair is still in the chip). Started before the reading is evaluated, so
         // the conversion runs meanwhile.
-        adc_.write(ad7794::kRegConfig, channel_config(channel_, true), 2);
-        begin_wait(ad7794::kModeSingle, kBurnoutFs, now_ms, ad7794::settle_ms(kBurnoutFs));
+        adc_.start_conversion(channel_config(channel_, true), 0, kBurnoutFs);
+        arm_timeout(now_ms, ad7794::settle_ms(kBurnoutFs));
         state_ = kBurnWait;
         // Rotate by whole bytes (register moves on AVR; a rotate by 3 is a ~250-cycle shift loop).
         entropy_ = ((entropy_ << 8) | (entropy_ >> 24)) ^ (code & 0xFF) ^ (code >> 8 & 0xFF);
@@ -248,22 +248,24 @@ class Acquisition {
 
   // Measurement conversion of channel_: its configuration and, for AIN4..AIN6 (one shared pair
   // on the chip), its calibration pair restored from RAM; AIN1..AIN3 keep their own pair from the
-  // calibration, so they need only the configuration (11 SPI bytes less each).
+  // calibration, so they need only the configuration (8 SPI bytes less each). The chip is in
+  // power-down or idle here, where the pair may be written: the previous conversion of the sweep
+  // has finished, or the read-back before the sweep has just checked the mode.
   BTSM_NOINLINE uint32_t start_channel(uint32_t now_ms) {
     const uint16_t config = channel_config(channel_, false);
-    if (channel_ >= ad7794::kFirstSharedCalChannel) {
-      adc_.prepare_channel(config, setup_.fs, &cal_[channel_]);
-    } else {
-      adc_.write(ad7794::kRegConfig, config, 2);
-    }
+    adc_.start_conversion(config, channel_ >= ad7794::kFirstSharedCalChannel ? &cal_[channel_] : 0, setup_.fs);
     last_config_ = config;
-    begin_wait(ad7794::kModeSingle, setup_.fs, now_ms, ad7794::settle_ms(setup_.fs));
+    arm_timeout(now_ms, ad7794::settle_ms(setup_.fs));
     state_ = kConvWait;
     return wait_budget(now_ms);
   }
 
-  BTSM_NOINLINE void begin_wait(uint8_t mode, uint8_t fs, uint32_t now_ms, uint16_t expected_ms) {
+  // A calibration: mode write, then wait for DOUT/RDY.
+  void begin_wait(uint8_t mode, uint8_t fs, uint32_t now_ms, uint16_t expected_ms) {
     adc_.start(mode, fs);
+    arm_timeout(now_ms, expected_ms);
+  }
+  BTSM_NOINLINE void arm_timeout(uint32_t now_ms, uint16_t expected_ms) {
     mark_ = now_ms;
     // Generous: twice the datasheet time plus the 1 ms oscillator start and tick jitter.
     timeout_ms_ = static_cast<uint16_t>(2 * expected_ms + 10);

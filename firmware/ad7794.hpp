@@ -66,17 +66,28 @@ class Ad7794 {
     spi_.deselect();
   }
 
-  // Writes the channel setup and its calibration pair, with the chip in idle (offset/full-scale
-  // writes are ignored in any other mode). Leaves CS high.
-  BTSM_NOINLINE void prepare_channel(uint16_t config, uint8_t fs, const AdcCalibration* cal) {
+  // Puts the chip in idle and writes the channel setup (before a calibration: a chip that was
+  // just reset converts continuously). Leaves CS high.
+  BTSM_NOINLINE void prepare_channel(uint16_t config, uint8_t fs) {
     spi_.select();
     write_selected(ad7794::kRegMode, ad7794::mode_word(ad7794::kModeIdle, fs), 2);
+    write_selected(ad7794::kRegConfig, config, 2);
+    spi_.deselect();
+  }
+
+  // Writes a channel's configuration -- and its calibration pair when cal is not null -- and
+  // starts a single conversion at fs, all in one transaction; CS stays low so DOUT/RDY reports
+  // completion through ready() (as after start()). Offset/full-scale writes are taken only in
+  // idle or power-down: the caller guarantees one (a finished single conversion leaves the chip
+  // powered down, a calibration leaves it idle).
+  BTSM_NOINLINE void start_conversion(uint16_t config, const AdcCalibration* cal, uint8_t fs) {
+    spi_.select();
     write_selected(ad7794::kRegConfig, config, 2);
     if (cal != 0) {
       write_selected(ad7794::kRegOffset, cal->offset, 3);
       write_selected(ad7794::kRegFullScale, cal->full_scale, 3);
     }
-    spi_.deselect();
+    write_selected(ad7794::kRegMode, ad7794::mode_word(ad7794::kModeSingle, fs), 2);
   }
 
   // Writes the mode register (single conversion or a calibration) and keeps CS low so DOUT/RDY

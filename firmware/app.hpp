@@ -295,9 +295,17 @@ class App {
   }
 
   // ---- output -------------------------------------------------------------------------------
-  struct SerialPut {
-    Board* board;
-    BTSM_ALWAYS_INLINE bool operator()(uint8_t b) { return board->serial.write(b); }
+  // Sink over one claimed piece of the UART's transmit space (board.serial.tx_claim): a compare
+  // and a store per byte; the ring indices and the transmit interrupt are touched once per piece
+  // (tx_commit), not per byte.
+  struct SpanPut {
+    uint8_t* p;
+    uint8_t* end;
+    BTSM_ALWAYS_INLINE bool operator()(uint8_t b) {
+      if (p == end) return false;
+      *p++ = b;
+      return true;
+    }
   };
 
   // The payload encoders write into the frame buffer behind the header (out_payload()), so the
@@ -311,17 +319,29 @@ class App {
     flush_output();
   }
 
-  // Streams the pending frame into the UART ring; when the ring fills up the cursor remembers
-  // where it stopped and the next poll continues from there (wire::resume_stuffed), so frames
-  // larger than the ring need no second buffer and nothing is encoded or checksummed twice.
+  // Streams the pending frame into the UART's transmit space; when it fills up the cursor
+  // remembers where it stopped and the next poll continues from there (wire::resume_stuffed), so
+  // frames larger than the ring need no second buffer and nothing is encoded or checksummed twice.
   // Inline test, out-of-line work: poll() calls this twice, and with -mcall-prologues an
   // out-of-line call that finds nothing to do still costs ~70 cycles of register saving.
   void flush_output() {
     if (out_pending_) continue_output();
   }
   BTSM_NOINLINE void continue_output() {
-    SerialPut put = {&board_};
-    if (wire::resume_stuffed(put, out_cursor_, out_frame_, out_len_)) out_pending_ = false;
+    // A ring hands out its free space in at most two pieces (before and after its wrap); the
+    // loop ends when the frame is out or nothing is free.
+    for (;;) {
+      uint8_t n = 0;
+      uint8_t* const start = board_.serial.tx_claim(n);
+      if (n == 0) return;
+      SpanPut put = {start, start + n};
+      const bool done = wire::resume_stuffed(put, out_cursor_, out_frame_, out_len_);
+      board_.serial.tx_commit(static_cast<uint8_t>(put.p - start));
+      if (done) {
+        out_pending_ = false;
+        return;
+      }
+    }
   }
 
   BTSM_NOINLINE void send_ack(uint8_t seq, uint8_t type, wire::Nack status, uint16_t detail) {

@@ -3,7 +3,6 @@
 
 #include <avr/interrupt.h>
 #include <avr/pgmspace.h>
-#include <avr/sleep.h>
 #include <avr/wdt.h>
 #include <util/atomic.h>
 
@@ -199,15 +198,6 @@ void Watchdog::enable() { wdt_enable(WDTO_2S); }
 void Watchdog::kick() { wdt_reset(); }
 bool Watchdog::caused_last_reset() { return (saved_mcusr & (1 << WDRF)) != 0; }
 
-void Power::idle() {
-  set_sleep_mode(SLEEP_MODE_IDLE);
-  cli();
-  sleep_enable();
-  sei();  // the instruction after sei runs before any interrupt: no lost wake-up
-  sleep_cpu();
-  sleep_disable();
-}
-
 bool Power::wake_event() {
   if (rx_head != rx_tail) return true;
   const uint8_t pins = PINB;
@@ -298,6 +288,8 @@ void Board::initialize() {
   PORTD |= (1 << Pins::kTach);
   EICRA = (1 << ISC01);
   EIMSK = (1 << INT0);
+  // Idle sleep mode (SM2..0 = 0) with sleep enabled for good: Power::idle() is one `sleep`.
+  SMCR = (1 << SE);
   sei();
 }
 

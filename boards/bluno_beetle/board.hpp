@@ -66,6 +66,28 @@ struct Serial {
     return true;
   }
   static uint16_t tx_free();
+  // Zero-copy transmit (the frame encoder stuffs its bytes straight into the ring): from head up
+  // to the slot before tail, or to the end of the array when tail is not ahead of head. One
+  // slot always stays empty (head == tail means empty). The tail read is a snapshot: the UDRE
+  // interrupt only ever frees more.
+  static BTSM_BOARD_INLINE uint8_t* tx_claim(uint8_t& n) {
+    const uint8_t head = detail::tx_head;
+    const uint8_t tail = detail::tx_tail;
+    if (tail > head) {
+      n = static_cast<uint8_t>(tail - head - 1);
+    } else {
+      n = static_cast<uint8_t>(kTxBufferBytes - head - (tail == 0 ? 1 : 0));
+    }
+    return const_cast<uint8_t*>(detail::tx_buf) + head;
+  }
+  // n <= the claimed n: head + n stays within the array (== its end wraps to 0).
+  static BTSM_BOARD_INLINE void tx_commit(uint8_t n) {
+    if (n == 0) return;
+    uint8_t head = static_cast<uint8_t>(detail::tx_head + n);
+    if (head == kTxBufferBytes) head = 0;
+    detail::tx_head = head;
+    UCSR0B |= (1 << UDRIE0);
+  }
 };
 
 struct Clock {
@@ -97,7 +119,12 @@ struct Watchdog {
 };
 
 struct Power {
-  static void idle();
+  // Idle sleep until the next interrupt. initialize() selects idle mode and sets the sleep-enable
+  // bit once (nothing else in the image executes `sleep`), so this is the one instruction: the
+  // loop in main.cpp wakes for every transmitted UART byte (~60 per frame) and every 1 ms tick,
+  // and rewriting SMCR around each sleep cost ~11 cycles a wake. No lost wake-up: the caller
+  // checks its events after the sleep, and the 1 ms tick bounds any sleep.
+  static BTSM_BOARD_INLINE void idle() { asm volatile("sleep" ::: "memory"); }
   // True when poll() has work before its sleep budget ends: a received byte, or a finished AD7794
   // conversion (DOUT/RDY low while CS is held low, as Ad7794::start() leaves it).
   static bool wake_event();

@@ -4,6 +4,7 @@
 #include <algorithm>
 #include <cmath>
 #include <limits>
+#include <stdexcept>
 
 #include "firmware/device_key.hpp"
 #include "hal/contracts.hpp"
@@ -55,6 +56,22 @@ bool NativeBoard::Serial::write(uint8_t byte) {
 
 uint16_t NativeBoard::Serial::tx_free() {
   return static_cast<uint16_t>(b->opt_.tx_buffer_bytes - b->tx_ring_.size());
+}
+
+// The AVR ring hands out its free space in up to two contiguous pieces; a staging buffer of the
+// whole free space models the contract (the encoder must not assume more than one claim is
+// needed, and it gets at most tx_free() bytes).
+uint8_t* NativeBoard::Serial::tx_claim(uint8_t& n) {
+  const uint16_t free = tx_free();
+  n = static_cast<uint8_t>(free > 255 ? 255 : free);
+  b->tx_claimed_.assign(n, 0xA5);  // garbage where nothing was written
+  return b->tx_claimed_.data();
+}
+
+void NativeBoard::Serial::tx_commit(uint8_t n) {
+  if (n > b->tx_claimed_.size()) throw std::logic_error("tx_commit: more bytes than claimed");
+  for (uint8_t i = 0; i < n; ++i) write(b->tx_claimed_[i]);
+  b->tx_claimed_.clear();
 }
 
 void NativeBoard::host_send(const uint8_t* data, size_t n) {

@@ -38,7 +38,7 @@ struct NativeBoardOptions {
   Ad7794ModelOptions adc;              // AD7794 model options (seed, noise, ...)
   uint32_t uart_baud = 115200;         // bit/s, 10 bits per byte; 0 = bytes move instantly
   uint16_t rx_buffer_bytes = 47;       // firmware receive ring capacity (AVR board: 48-slot ring)
-  uint16_t tx_buffer_bytes = 39;       // firmware transmit ring capacity (AVR board: 40-slot ring)
+  uint16_t tx_buffer_bytes = 71;       // firmware transmit ring capacity (AVR board: 72-slot ring)
   uint32_t eeprom_write_us = 3400;     // us per EEPROM byte write (ATmega328P datasheet: 3.3 ms)
   uint32_t watchdog_timeout_ms = 2000; // ms (AVR board uses WDTO_2S)
   uint32_t device_id = 0x0000DE70;     // reported in INFO
@@ -68,6 +68,8 @@ class NativeBoard {
     bool read(uint8_t& byte);
     bool write(uint8_t byte);
     uint16_t tx_free();
+    uint8_t* tx_claim(uint8_t& n);
+    void tx_commit(uint8_t n);
   };
   struct Clock {
     NativeBoard* b;
@@ -182,6 +184,7 @@ class NativeBoard {
   std::deque<uint8_t> rx_wire_;   // host -> firmware, not yet received
   std::deque<uint8_t> rx_ring_;   // received, waiting for serial.read()
   std::deque<uint8_t> tx_ring_;   // firmware -> host, waiting for the transmitter
+  std::vector<uint8_t> tx_claimed_;  // Serial::tx_claim() space, moved to tx_ring_ by tx_commit()
   std::vector<uint8_t> tx_done_;  // transmitted, waiting for host_receive()
   uint64_t next_rx_us_ = 0;
   uint64_t next_tx_us_ = 0;
