@@ -8,9 +8,11 @@
 //   1. channel configuration -- for AIN4..AIN6, which share one calibration pair on the chip,
 //      also this channel's pair (restored from RAM); AIN1..AIN3 keep their own --
 //      single conversion at the configured FS, wait RDY
-//   2. same channel (calibration pair left in place) with the burnout currents on, single
-//      conversion at FS 1 (4 ms): an open input is driven to full scale (ERR) -- a healthy one
-//      moves by 100 nA x R (ignored)
+//   2. on the channels whose open-wire check is due (AcquisitionSetup::burnout_checks_per_sweep
+//      per sweep, rotating): same channel (calibration pair left in place) with the burnout
+//      currents on, single conversion at FS 1 (4 ms): an open input is driven to full scale (ERR)
+//      -- a healthy one moves by 100 nA x R (ignored). The verdict holds until the channel's next
+//      check, so a broken sense lead (which reads a plausible stale value) stays reported.
 // Before and after each sweep the mode/configuration/IO registers are read back; a mismatch means
 // the chip reset itself (supply glitch, ESD): it is counted and the chip re-initialised.
 #ifndef BTSM_FIRMWARE_ACQUISITION_HPP
@@ -30,6 +32,13 @@ struct AcquisitionSetup {
   uint8_t enabled_mask = 0x1F;     // bit j = channel j (AIN j+1) is measured
   float r_ref_ohm = 6800.0f;       // ohm, reference resistor on REFIN1
   uint16_t recalibrate_sweeps = 720;  // sweeps between internal recalibrations (0 = never)
+  // Open-wire (burnout) checks per sweep, 1..5, rotating over the enabled channels: with 2 and
+  // five channels every channel is checked at least every third sweep, so a broken sense lead is
+  // reported within 3 samples (15 s at the default period); 5 checks every channel every sweep.
+  // Each check is a 4 ms conversion and ~930 CPU cycles: 2 keeps the costliest sweep (a speed
+  // change into an interpolated model segment while the filters settle) within its 40,000-cycle
+  // budget. Between its checks a channel keeps the verdict of its last one.
+  uint8_t burnout_checks_per_sweep = 2;
 };
 
 // Fault bits use the wire encoding (common/wire_messages.hpp kFault*).
@@ -73,6 +82,8 @@ class Acquisition {
   void configure(const AcquisitionSetup& s) {
     setup_ = s;
     update_scale();
+    open_latched_ = static_cast<uint8_t>(open_latched_ & s.enabled_mask);
+    unchecked_ = s.enabled_mask;  // each channel is checked in the first sweep
     if (state_ == kConvStart || state_ == kConvWait || state_ == kBurnWait) {
       adc_.finish();
       sweep_requested_ = true;
@@ -180,6 +191,7 @@ class Acquisition {
           readings_[i].code = 0;
           readings_[i].r_ohm = 0.0f;
         }
+        plan_burnout_checks();
         if (channel_ >= kChannels) {
           sweep_ready_ = true;
           return 0;
@@ -192,35 +204,42 @@ class Acquisition {
         uint8_t status = 0;
         uint32_t code = 0;
         adc_.finish_conversion(status, code, data_width());
-        // Same channel with the burnout currents on: only the configuration changes (its
-        // calibration pair is still in the chip). Started before the reading is evaluated, so
-        // the conversion runs meanwhile.
-        adc_.start_conversion(channel_config(channel_, true), 0, kBurnoutFs);
-        arm_timeout(now_ms, ad7794::settle_ms(kBurnoutFs));
-        state_ = kBurnWait;
+        const bool check = ((burnout_due_ >> channel_) & 1U) != 0;
+        if (check) {
+          // Same channel with the burnout currents on: only the configuration changes (its
+          // calibration pair is still in the chip). Started before the reading is evaluated, so
+          // the conversion runs meanwhile.
+          adc_.start_conversion(channel_config(channel_, true), 0, kBurnoutFs);
+          arm_timeout(now_ms, ad7794::settle_ms(kBurnoutFs));
+          burnout_on_ = true;
+          state_ = kBurnWait;
+        }
         // Rotate by whole bytes (register moves on AVR; a rotate by 3 is a ~250-cycle shift loop).
         entropy_ = ((entropy_ << 8) | (entropy_ >> 24)) ^ (code & 0xFF) ^ (code >> 8 & 0xFF);
         evaluate(channel_, status, code);
-        return wait_budget(now_ms);
+        if (check) return wait_budget(now_ms);
+        // Not checked this sweep: the verdict of its last check stands (unless the reference is
+        // missing, which makes every input look open).
+        if ((open_latched_ >> channel_) & 1U) mark_open(readings_[channel_]);
+        return next_channel(now_ms);
       }
       case kBurnWait: {
         if (!adc_.ready()) return check_timeout(now_ms);
         uint8_t status = 0;
         uint32_t code = 0;
         adc_.finish_conversion(status, code, data_width());
-        ChannelReading& r = readings_[channel_];
         const bool reference_missing = (status & ad7794::kStatusNoXref) != 0;
-        if (!reference_missing && ((status & ad7794::kStatusErr) || code >= kBurnoutOpenCode)) {
-          r.faults = static_cast<uint8_t>((r.faults & ~wire::kFaultShort) | wire::kFaultOpen);
+        if (!reference_missing) {
+          const uint8_t bit = static_cast<uint8_t>(1U << channel_);
+          unchecked_ = static_cast<uint8_t>(unchecked_ & ~bit);
+          if ((status & ad7794::kStatusErr) || code >= kBurnoutOpenCode) {
+            open_latched_ |= bit;
+            mark_open(readings_[channel_]);
+          } else {
+            open_latched_ = static_cast<uint8_t>(open_latched_ & ~bit);
+          }
         }
-        // Next channel in the same poll: its configuration write also switches the burnout
-        // currents off.
-        channel_ = first_enabled(channel_ + 1);
-        if (channel_ < kChannels) return start_channel(now_ms);
-        // Burnout currents off again (and the register image the read-back expects).
-        adc_.write(ad7794::kRegConfig, last_config_, 2);
-        end_sweep();
-        return 0;
+        return next_channel(now_ms);
       }
     }
     return 0;
@@ -233,6 +252,41 @@ class Acquisition {
   };
 
   uint8_t data_width() const { return chip_ == AdcChip::kAd7795 ? 2 : 3; }
+
+  // The channels whose open-wire check is due this sweep: the next burnout_checks_per_sweep
+  // enabled channels from where the last sweep's checks stopped, and every channel not checked
+  // yet since configure() (the first sweep after start-up checks them all: an unconnected input
+  // never reports a temperature).
+  void plan_burnout_checks() {
+    uint8_t left = setup_.burnout_checks_per_sweep;
+    uint8_t due = 0;
+    uint8_t ch = burnout_next_ < kChannels ? burnout_next_ : 0;
+    for (uint8_t k = 0; k < kChannels && left != 0; ++k) {
+      if ((setup_.enabled_mask >> ch) & 1U) {
+        due = static_cast<uint8_t>(due | (1U << ch));
+        --left;
+      }
+      ch = static_cast<uint8_t>(ch + 1 == kChannels ? 0 : ch + 1);
+    }
+    burnout_due_ = static_cast<uint8_t>(due | unchecked_);
+    burnout_next_ = ch;
+  }
+
+  // An open input: open replaces a short verdict of the measurement (an open input may read 0).
+  static void mark_open(ChannelReading& r) {
+    if (r.faults & wire::kFaultReference) return;
+    r.faults = static_cast<uint8_t>((r.faults & ~wire::kFaultShort) | wire::kFaultOpen);
+  }
+
+  // The next enabled channel in the same poll (its configuration write also switches the
+  // burnout currents off), or the end of the sweep.
+  uint32_t next_channel(uint32_t now_ms) {
+    channel_ = first_enabled(channel_ + 1);
+    if (channel_ < kChannels) return start_channel(now_ms);
+    if (burnout_on_) adc_.write(ad7794::kRegConfig, last_config_, 2);  // the image the read-back expects
+    end_sweep();
+    return 0;
+  }
 
   uint8_t first_enabled(uint8_t from) const {
     uint8_t ch = from;
@@ -255,6 +309,7 @@ class Acquisition {
     const uint16_t config = channel_config(channel_, false);
     adc_.start_conversion(config, channel_ >= ad7794::kFirstSharedCalChannel ? &cal_[channel_] : 0, setup_.fs);
     last_config_ = config;
+    burnout_on_ = false;
     arm_timeout(now_ms, ad7794::settle_ms(setup_.fs));
     state_ = kConvWait;
     return wait_budget(now_ms);
@@ -392,6 +447,11 @@ class Acquisition {
   uint16_t sweeps_since_cal_ = 0;
   State state_ = kStart;
   uint8_t channel_ = 0;
+  uint8_t burnout_due_ = 0;    // bit j: channel j gets its open-wire check this sweep
+  uint8_t burnout_next_ = 0;   // where the next sweep's checks start
+  uint8_t open_latched_ = 0;   // bit j: channel j's last open-wire check found it open
+  uint8_t unchecked_ = 0;      // bit j: channel j has had no open-wire check since configure()
+  bool burnout_on_ = false;    // the chip's configuration has the burnout currents on
   AdcChip chip_ = AdcChip::kNone;
   bool calibrated_ = false;
   bool sweep_requested_ = false;

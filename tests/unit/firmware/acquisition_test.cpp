@@ -100,6 +100,9 @@ TEST_F(AcqFixture, SweepTakesTheConversionAndBurnoutTimes) {
 }
 
 TEST_F(AcqFixture, OpenSenseLeadIsFoundByTheBurnoutCheckOnly) {
+  AcquisitionSetup every;
+  every.burnout_checks_per_sweep = 5;  // every channel every sweep: found in the next sweep
+  acq.configure(every);
   ASSERT_TRUE(sweep());
   board.front_end().probe_fault[1] = sim::ProbeFault::kOpenSense;
   ASSERT_TRUE(sweep());
@@ -108,6 +111,61 @@ TEST_F(AcqFixture, OpenSenseLeadIsFoundByTheBurnoutCheckOnly) {
   board.front_end().probe_fault[1] = sim::ProbeFault::kNone;
   ASSERT_TRUE(sweep());
   EXPECT_EQ(acq.reading(1).faults, 0);
+}
+
+// Default: two open-wire checks per sweep, rotating. Whichever channel breaks at whichever point
+// of the rotation, it is reported open within three sweeps and in every sweep after that (never
+// again as a temperature), and reported good within three sweeps of the repair. Only the
+// checks tell a broken sense lead from a good probe: the measurement itself reads plausibly.
+TEST_F(AcqFixture, RotatingOpenWireChecksFindEveryChannelWithinThreeSweeps) {
+  ASSERT_EQ(AcquisitionSetup().burnout_checks_per_sweep, 2);
+  for (uint8_t broken = 0; broken < 5; ++broken) {
+    for (int phase = 0; phase < 5; ++phase) {
+      for (int k = 0; k < phase; ++k) ASSERT_TRUE(sweep());
+      board.front_end().probe_fault[broken] = sim::ProbeFault::kOpenSense;
+      int found_after = 0;
+      for (int k = 1; k <= 3 && found_after == 0; ++k) {
+        ASSERT_TRUE(sweep());
+        if (acq.reading(broken).faults == wire::kFaultOpen) found_after = k;
+        for (uint8_t j = 0; j < 5; ++j) {
+          if (j == broken) continue;
+          ASSERT_EQ(acq.reading(j).faults, 0) << int(j);
+        }
+      }
+      ASSERT_NE(found_after, 0) << "channel " << int(broken) << " phase " << phase;
+      for (int k = 0; k < 6; ++k) {  // the verdict holds between the channel's checks
+        ASSERT_TRUE(sweep());
+        ASSERT_EQ(acq.reading(broken).faults, wire::kFaultOpen) << "channel " << int(broken) << " sweep " << k;
+      }
+      board.front_end().probe_fault[broken] = sim::ProbeFault::kNone;
+      int cleared_after = 0;
+      for (int k = 1; k <= 3 && cleared_after == 0; ++k) {
+        ASSERT_TRUE(sweep());
+        if (acq.reading(broken).faults == 0) cleared_after = k;
+      }
+      ASSERT_NE(cleared_after, 0) << "channel " << int(broken) << " phase " << phase;
+      EXPECT_NEAR(acq.reading(broken).r_ohm, board.front_end().probe_ohm[broken], 0.01);
+    }
+  }
+}
+
+// Two checks per sweep -- 5 measurements + 2 burnout conversions -- except the first sweep after
+// configure(), which checks every channel: an input with nothing connected (a spare channel left
+// open) is reported open from the first sample, never as a temperature.
+TEST_F(AcqFixture, FirstSweepChecksEveryChannelThenTwoPerSweep) {
+  board.front_end().probe_fault[4] = sim::ProbeFault::kOpenSense;
+  ASSERT_TRUE(sweep());  // calibration + the first sweep
+  EXPECT_EQ(acq.reading(4).faults, wire::kFaultOpen);
+  for (int k = 0; k < 6; ++k) {
+    const uint64_t before = board.adc().counters().conversions;
+    ASSERT_TRUE(sweep());
+    EXPECT_EQ(board.adc().counters().conversions - before, 7u) << k;
+    EXPECT_EQ(acq.reading(4).faults, wire::kFaultOpen) << k;
+  }
+  board.front_end().probe_fault[4] = sim::ProbeFault::kNone;
+  acq.configure(AcquisitionSetup());  // re-initialisation: calibration, then every channel checked
+  ASSERT_TRUE(sweep());
+  EXPECT_EQ(acq.reading(4).faults, 0);
 }
 
 TEST_F(AcqFixture, ShortedProbe) {
@@ -186,8 +244,8 @@ TEST_F(AcqFixture, DisabledChannelsAreNotConverted) {
   const uint64_t before = board.adc().counters().conversions;
   ASSERT_TRUE(sweep());
   ASSERT_TRUE(sweep());
-  // 3 channels x (measurement + burnout) x 2 sweeps.
-  EXPECT_EQ(board.adc().counters().conversions - before, 12u);
+  // 3 channels x measurement x 2 sweeps, burnout checks: all 3 in the first sweep, then 2.
+  EXPECT_EQ(board.adc().counters().conversions - before, 11u);
   EXPECT_NEAR(acq.reading(3).r_ohm, board.front_end().probe_ohm[3], 0.01);
 }
 
