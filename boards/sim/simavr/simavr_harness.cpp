@@ -125,6 +125,19 @@ struct HarnessCallbacks {
 
   static avr_cycle_count_t stop_marker(avr_t*, avr_cycle_count_t, void*) { return 0; }
 
+  // Every MCU reset -- power cycle, watchdog (the REBOOT command), brown-out -- passes here, from
+  // inside avr_reset(), which also drops every cycle timer: the harness's own state is restored one
+  // cycle later, before the firmware's first instruction reads a pin.
+  static void mcu_reset(avr_t* avr) {
+    auto* h = self(avr->custom.data);
+    if (h->core_reset_) h->core_reset_(avr);
+    avr_cycle_timer_register(avr, 1, &HarnessCallbacks::after_reset, h);
+  }
+  static avr_cycle_count_t after_reset(avr_t*, avr_cycle_count_t, void* p) {
+    self(p)->after_mcu_reset();
+    return 0;
+  }
+
   static avr_cycle_count_t device_event(avr_t* avr, avr_cycle_count_t, void* p) {
     auto* h = self(p);
     h->sync_device();
@@ -226,6 +239,8 @@ void SimavrHarness::attach() {
   tach_irq_ = avr_io_getirq(avr_, AVR_IOCTL_IOPORT_GETIRQ(opts_.tach.port), opts_.tach.bit);
   if (!spi_irq_ || !uart_irq_ || !cs_irq_ || !miso_irq_ || !tach_irq_)
     throw std::runtime_error("simavr: the MCU lacks SPI, UART0 or the configured port pins");
+  core_reset_ = avr_->reset;
+  avr_->reset = &HarnessCallbacks::mcu_reset;
   avr_irq_register_notify(spi_irq_ + SPI_IRQ_OUTPUT, &HarnessCallbacks::spi_output, this);
   avr_irq_register_notify(cs_irq_, &HarnessCallbacks::cs_change, this);
   avr_irq_register_notify(uart_irq_ + UART_IRQ_OUTPUT, &HarnessCallbacks::uart_output, this);
@@ -365,29 +380,42 @@ void SimavrHarness::set_tach_hz(double hz) {
   }
 }
 
+// The supply fails and returns: the MCU resets (after_mcu_reset restores the wiring), SRAM is lost,
+// the EEPROM keeps its contents, the AD7794 goes through its own power-on reset, and host bytes in
+// flight are lost.
 void SimavrHarness::power_cycle() {
   const std::vector<uint8_t> ee = eeprom();
   avr_reset(avr_);
   set_eeprom(ee);
-  uint32_t flags = 0;
-  avr_ioctl(avr_, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
-  flags &= ~uint32_t(AVR_UART_FLAG_STDIO);
-  avr_ioctl(avr_, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
-  // avr_reset dropped every cycle timer: restart ours from a clean state.
   cs_low_ = false;
   if (spi_) {
     sync_device();
     spi_->power_on_reset();
   }
   device_cycle_ = avr_->cycle;
+  rx_queue_.clear();
+  counters_.power_cycles++;
+}
+
+// After any MCU reset: avr_reset cleared the I/O registers and dropped every cycle timer.
+void SimavrHarness::after_mcu_reset() {
+  uint32_t flags = 0;
+  avr_ioctl(avr_, AVR_IOCTL_UART_GET_FLAGS('0'), &flags);
+  flags &= ~uint32_t(AVR_UART_FLAG_STDIO);
+  avr_ioctl(avr_, AVR_IOCTL_UART_SET_FLAGS('0'), &flags);
   xoff_ = false;
   feeding_ = false;
-  rx_queue_.clear();  // bytes in flight are lost with the power
+  feed_uart();
   tach_running_ = false;
   tach_level_ = false;
-  avr_raise_irq(miso_irq_, 1);
   set_tach_hz(tach_hz_);
-  counters_.power_cycles++;
+  // PINB is 0 again, but the pin IRQ keeps its last value and simavr filters a raise to the same
+  // value: re-raising a high DOUT/RDY would leave PINB4 reading 0 -- "conversion ready" -- for
+  // ever (every calibration "finished" at once and the firmware re-initialised the chip in a
+  // loop). A 0 first makes the real level a change that reaches the port.
+  avr_raise_irq(miso_irq_, 0);
+  update_miso();
+  schedule_device_event();
 }
 
 std::vector<uint8_t> SimavrHarness::eeprom() const {

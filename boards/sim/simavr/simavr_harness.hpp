@@ -130,6 +130,7 @@ class SimavrHarness {
   void on_spi_byte(uint8_t mosi);
   void on_cs(bool high);
   void feed_uart();
+  void after_mcu_reset();
 
   HarnessOptions opts_;
   SpiPeripheral* spi_;
@@ -156,6 +157,7 @@ class SimavrHarness {
   uint64_t cut_at_write_ = 0;
   uint8_t torn_value_ = 0xFF;
   bool power_lost_ = false;
+  void (*core_reset_)(avr_t*) = nullptr;  // the core's own reset hook, chained
 };
 
 }  // namespace btsm::sim

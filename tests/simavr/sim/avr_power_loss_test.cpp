@@ -1,6 +1,8 @@
 // The real AVR image in simavr: power cuts at >= 200 random EEPROM-write positions while a new
-// model is uploaded; every boot afterwards reports a valid model, the old or the new one.
+// model is uploaded; every boot afterwards reports a valid model, the old or the new one. And a
+// power cycle in the middle of measuring: the module comes back and measures again.
 #include "avr_link.hpp"
+#include "boards/sim/plant/probes.hpp"
 #include "tests/hil/sim/model_upload.hpp"
 
 #include <gtest/gtest.h>
@@ -71,6 +73,45 @@ TEST_F(AvrPowerLoss, EveryBootHasTheOldOrTheNewModel) {
               static_cast<unsigned long long>(upload_writes), old_model, new_model);
   EXPECT_GT(old_model, 0);
   EXPECT_GT(new_model, 0);
+}
+
+// After a power cycle the image boots, calibrates and streams good temperatures again (the
+// simulated DOUT/RDY line must read high again after the reset: a stale low made every
+// calibration "finish" at once and the firmware re-initialise the chip for ever).
+TEST_F(AvrPowerLoss, MeasuresAgainAfterAPowerCycle) {
+  AvrLink l;
+  const double temps[5] = {20.0, 35.5, 42.0, 22.0, 60.0};
+  for (int j = 0; j < 5; ++j) l.adc.front_end().probe_ohm[size_t(j)] = sim::pt1000_ohm(temps[j]);
+  l.h->set_tach_hz(100.0);
+  l.step(8.0);
+  ASSERT_GE(l.capture().samples.size(), 1u);
+  const uint64_t calibrations = l.adc.counters().calibrations;
+  l.step(2.3);  // mid-sweep or between sweeps: either way the power goes
+  l.reboot();
+  l.step(8.0);
+  const auto& s = l.capture().samples;
+  ASSERT_GE(s.size(), 2u) << "no samples after the power cycle";
+  EXPECT_EQ(s.front().sample_index, 0u);  // a fresh boot
+  for (const auto& smp : s) {
+    for (int j = 0; j < 5; ++j) {
+      const uint8_t hard = wire::kFaultOpen | wire::kFaultShort | wire::kFaultAdc | wire::kFaultReference;
+      ASSERT_EQ(smp.channel_status[j] & hard, 0) << "sample " << smp.sample_index << " channel " << j;
+      EXPECT_NEAR(smp.temp_mK[j] / 1000.0, temps[j], 0.01) << "sample " << smp.sample_index << " channel " << j;
+    }
+  }
+  EXPECT_EQ(l.adc.counters().calibrations - calibrations, 10u);  // zero + full scale, five channels, once
+  EXPECT_EQ(s.back().speed_rpm, 6000);  // the tach pulse train is back at its own rate
+
+  // The REBOOT command: a watchdog reset inside the simulated MCU, not a power cycle.
+  uint8_t seq = 1;
+  l.send(frame(uint8_t(wire::MsgType::Reboot), seq++, nullptr, 0));
+  l.step(0.5);
+  const size_t before = l.capture().samples.size();
+  l.step(8.0);
+  ASSERT_GE(l.capture().samples.size(), before + 2) << "no samples after the REBOOT command";
+  const auto& r = l.capture().samples.back();
+  for (int j = 0; j < 5; ++j) EXPECT_NEAR(r.temp_mK[j] / 1000.0, temps[j], 0.01) << "after REBOOT, channel " << j;
+  EXPECT_EQ(r.speed_rpm, 6000);
 }
 
 }  // namespace
