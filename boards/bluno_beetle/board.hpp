@@ -83,6 +83,9 @@ struct Serial {
   // n <= the claimed n: head + n stays within the array (== its end wraps to 0).
   static BTSM_BOARD_INLINE void tx_commit(uint8_t n) {
     if (n == 0) return;
+    // The bytes were stored through a plain pointer: keep the compiler from sinking those stores
+    // below the head update that hands them to the interrupt (no instruction is emitted).
+    asm volatile("" ::: "memory");
     uint8_t head = static_cast<uint8_t>(detail::tx_head + n);
     if (head == kTxBufferBytes) head = 0;
     detail::tx_head = head;
