@@ -197,8 +197,9 @@ enum class ChannelRole : uint8_t {
   Motor = 5,
   Coolant = 6,
   Spare = 7,  // measured and reported, no diagnosis limits
+  Shaft = 8,  // probe on the (stationary) shaft end: the network's shaft node, diagnosed
 };
-const uint8_t kChannelRoleCount = 8;
+const uint8_t kChannelRoleCount = 9;
 
 inline const char* channel_role_name(uint8_t role) {
   switch (static_cast<ChannelRole>(role)) {
@@ -210,6 +211,7 @@ inline const char* channel_role_name(uint8_t role) {
     case ChannelRole::Motor: return "motor";
     case ChannelRole::Coolant: return "coolant";
     case ChannelRole::Spare: return "spare";
+    case ChannelRole::Shaft: return "shaft";
   }
   return nullptr;
 }

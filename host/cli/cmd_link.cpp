@@ -183,7 +183,7 @@ int32_t parse_config_value(uint8_t key, const std::string& text) {
   throw CommandError(kExitUsage, fmt::format("value '{}' for {} is not an integer{}", text, wire::config_key_name(key),
                                              key >= wire::kChannelRoleKeyFirst ? " or a role name (ambient, front_bearing, "
                                                                                  "rear_bearing, housing, motor, coolant, "
-                                                                                 "spare, disabled)"
+                                                                                 "spare, shaft, disabled)"
                                                                                : ""));
 }
 
@@ -494,7 +494,7 @@ void register_set_config(CLI::App& app) {
   }
   c->footer("Keys:\n" + keys +
             "channel_role_N takes a role name: disabled, ambient, front_bearing, rear_bearing, housing,\n"
-            "motor, coolant, spare.\n  btsm set-config --port /dev/ttyACM0 sample_period_ms 2000");
+            "motor, coolant, spare, shaft.\n  btsm set-config --port /dev/ttyACM0 sample_period_ms 2000");
   add_link_options(*c, a->link);
   c->add_option("key", a->key, "configuration key name (or number)")->required();
   c->add_option("value", a->value, "integer value (or role name)")->required();

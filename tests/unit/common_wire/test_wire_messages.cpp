@@ -255,6 +255,14 @@ TEST(WireMessages, ConfigKeysRangesDefaultsAndCodec) {
   EXPECT_STREQ(config_key_name(channel_role_key(0)), "channel_role_1");
   EXPECT_STREQ(channel_role_name(static_cast<uint8_t>(default_channel_role(0))), "rear_bearing");
   EXPECT_EQ(channel_role_name(kChannelRoleCount), nullptr);
+  // Every role below the count has a name, and the names are distinct (set-config parses them).
+  for (uint8_t a = 0; a < kChannelRoleCount; ++a) {
+    ASSERT_NE(channel_role_name(a), nullptr) << int(a);
+    for (uint8_t b = 0; b < a; ++b) EXPECT_STRNE(channel_role_name(a), channel_role_name(b));
+  }
+  EXPECT_STREQ(channel_role_name(static_cast<uint8_t>(ChannelRole::Shaft)), "shaft");
+  EXPECT_TRUE(config_value_valid(channel_role_key(4), static_cast<int32_t>(ChannelRole::Shaft)));
+  EXPECT_FALSE(config_value_valid(channel_role_key(4), kChannelRoleCount));
   expect_rejects_other_lengths(type_code(MsgType::SetConfig), decode_set_config);
   expect_rejects_other_lengths(type_code(MsgType::GetConfig), decode_get_config);
 }

@@ -101,6 +101,10 @@ TEST(LinkCli, InfoRecordSetConfigAgainstTheFakeModule) {
   EXPECT_NE(r.err.find("sample_period_ms"), std::string::npos);
   r = run(home, "set-config no_such_key 1 --port " + m.pty.path);
   EXPECT_EQ(r.code, 2);
+  EXPECT_EQ(run(home, "set-config channel_role_5 shaft --port " + m.pty.path).code, 0);
+  r = run(home, "set-config channel_role_5 spindle_nose --port " + m.pty.path);
+  EXPECT_EQ(r.code, 2);  // not a role: the message lists the names
+  EXPECT_NE(r.err.find("shaft"), std::string::npos) << r.err;
   EXPECT_EQ(run(home, "set-config channel_role_5 disabled --port " + m.pty.path).code, 0);
   r = run(home, "info --port /dev/nonexistent-btsm");
   EXPECT_EQ(r.code, 3);
