@@ -4,6 +4,7 @@
 #include "commands.hpp"
 #include "host/residual/residual_loop.hpp"
 #include "host/residual/residual_report.hpp"
+#include "host/thermal/fit.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
@@ -41,9 +42,16 @@ void run_residual(ResidualArgs& a) {
     } else {
       model.network = th::load_network(a.network);
     }
-    th::remap_measurements(model.network, a.columns);
     for (const auto& f : a.fit) fit.push_back(th::read_recording_csv(f));
     for (const auto& f : a.check) check.push_back(th::read_recording_csv(f));
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  std::vector<th::Recording> all = fit;
+  all.insert(all.end(), check.begin(), check.end());
+  try {
+    const std::string said = th::map_measurements(model.network, all, a.columns);
+    if (!said.empty()) std::cerr << "residual: from the recordings' channel roles:" << said << "\n";
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }

@@ -53,13 +53,18 @@ void run_fit(const FitArgs& a) {
   try {
     if (!a.preset.empty() == !a.network.empty()) throw CommandError(kExitUsage, "give exactly one of --preset or --network");
     net = a.preset.empty() ? load_network(a.network) : preset_network(a.preset);
-    remap_measurements(net, a.columns);
   } catch (const CommandError&) {
     throw;
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
   const auto recs = read_all(a.recordings);
+  try {
+    const std::string said = map_measurements(net, recs, a.columns);
+    if (!said.empty()) std::cerr << "fit: from the recordings' channel roles:" << said << "\n";
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
   FitOptions o;
   o.sum_capacitance_J_per_K = a.sum_c;
   o.initial_state = a.initial == "first" ? InitialState::FirstSamples : InitialState::Estimate;
@@ -322,8 +327,9 @@ void register_sysid_commands(CLI::App& app) {
         "The scale gauge (C, G, Q -> kC, kG, kQ) is fixed by --sum-c or the network's sum_capacitance_J_per_K, or by\n"
         "fixed parameters. Output: model JSON with values, units, 1 sigma, identifiability, fit metrics.\n"
         "Example: btsm fit warmup_*.csv --preset spindle4 --sum-c 20478.7 --out model.json\n"
-        "A module recording with the default roles has T1,T2,T3 and T5 (ch4 is ambient): with the fifth probe on the\n"
-        "shaft end, add --column shaft=T5 (the model JSON keeps the mapping for validate, reduce and heat).");
+        "A recording from `btsm record` carries the module's channel roles: nodes named like a role are measured by\n"
+        "the channel with that role (or by none), as printed. With the default roles (ch5 spare) and the fifth probe\n"
+        "on the shaft end, add --column shaft=T5 (the model JSON keeps the mapping for validate, reduce and heat).");
     c->add_option("recordings", a->recordings, "Recording CSV files (time_s,speed_rpm,ambient_c,T1..)")->required()->check(CLI::ExistingFile);
     c->add_option("--preset", a->preset, "Built-in network: spindle4 (Lo, Hu & Chang 2018)");
     c->add_option("--network", a->network, "Network description JSON (see README: Network JSON)")->check(CLI::ExistingFile);

@@ -802,6 +802,60 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec) {
   return cols;
 }
 
+std::vector<std::string> column_specs_from_roles(const Network& net, const std::vector<Recording>& recs,
+                                                 const std::vector<std::string>& explicit_specs) {
+  std::map<std::string, std::string> explicit_nodes;
+  for (const auto& spec : explicit_specs) explicit_nodes[spec.substr(0, spec.find('='))] = spec;
+  // node name -> (column, or "" for none; the recording it came from)
+  std::map<std::string, std::pair<std::string, std::string>> chosen;
+  for (const auto& rec : recs) {
+    const std::string meta = rec.meta_value("channel_roles");
+    if (meta.empty() || meta.find('(') != std::string::npos) continue;  // absent, or defaults
+    std::map<std::string, std::string> column_of_role;
+    std::stringstream ss(meta);
+    std::string pair;
+    while (std::getline(ss, pair, ',')) {
+      const auto eq = pair.find('=');
+      if (eq == std::string::npos) continue;
+      column_of_role[pair.substr(eq + 1)] = pair.substr(0, eq);
+    }
+    for (const auto& node : net.nodes) {
+      const auto role = column_of_role.find(node.name);
+      bool is_role = false;  // only nodes named like a role are the roles' business
+      for (const char* r : {"front_bearing", "rear_bearing", "housing", "motor", "coolant", "shaft"})
+        is_role = is_role || node.name == r;
+      if (!is_role || explicit_nodes.count(node.name)) continue;
+      const std::string column = role == column_of_role.end() ? std::string() : role->second;
+      const auto prev = chosen.find(node.name);
+      if (prev == chosen.end()) {
+        chosen[node.name] = {column, rec.source};
+      } else if (prev->second.first != column) {
+        throw std::invalid_argument("channel roles: " + prev->second.second + " has node '" + node.name + "' on " +
+                                    (prev->second.first.empty() ? "no channel" : prev->second.first) + ", " +
+                                    rec.source + " on " + (column.empty() ? "no channel" : column) +
+                                    "; say which with --column " + node.name + "=COLUMN");
+      }
+    }
+  }
+  // Every chosen node loses its old column first, so swapped probes do not collide.
+  std::vector<std::string> specs;
+  for (const auto& [node, c] : chosen) specs.push_back(node + "=");
+  for (const auto& [node, c] : chosen)
+    if (!c.first.empty()) specs.push_back(node + "=" + c.first);
+  return specs;
+}
+
+std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns) {
+  std::vector<std::string> specs = column_specs_from_roles(net, recs, columns);
+  std::map<std::string, std::string> column_of;  // the last spec of a node decides
+  for (const auto& sp : specs) column_of[sp.substr(0, sp.find('='))] = sp.substr(sp.find('=') + 1);
+  std::string said;
+  for (const auto& [node, column] : column_of) said += " " + node + "=" + (column.empty() ? "(none)" : column);
+  specs.insert(specs.end(), columns.begin(), columns.end());
+  remap_measurements(net, specs);
+  return said;
+}
+
 Eigen::VectorXd first_sample_state(const Network& net, const Recording& rec) {
   return state_from_row(net, rec, measurement_columns(net, rec), 0);
 }

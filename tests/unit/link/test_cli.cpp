@@ -35,9 +35,9 @@ std::string slurp(const std::string& p) {
 }
 
 // Runs the CLI with HOME=<home>, XDG_CONFIG_HOME unset.
-Result run(const test::TempDir& home, const std::string& args) {
+Result run(const test::TempDir& home, const std::string& args, const std::string& cli = BTSM_LINK_CLI) {
   const std::string out = home.path + "/stdout.txt", err = home.path + "/stderr.txt";
-  const std::string cmd = "env -u XDG_CONFIG_HOME HOME='" + home.path + "' " + BTSM_LINK_CLI + " " + args + " >'" + out +
+  const std::string cmd = "env -u XDG_CONFIG_HOME HOME='" + home.path + "' " + cli + " " + args + " >'" + out +
                           "' 2>'" + err + "' </dev/null";
   const int st = std::system(cmd.c_str());
   Result r;
@@ -109,6 +109,30 @@ TEST(LinkCli, InfoRecordSetConfigAgainstTheFakeModule) {
   r = run(home, "info --port /dev/nonexistent-btsm");
   EXPECT_EQ(r.code, 3);
   EXPECT_NE(r.err.find("/dev/nonexistent-btsm"), std::string::npos);
+}
+
+// The module's channel roles travel with the recording: `fit` places the probes by them (here the
+// fifth probe becomes the shaft node's) and says so, before it fits.
+TEST(LinkCli, FitTakesTheProbesFromTheRecordedChannelRoles) {
+#ifndef BTSM_CLI
+  GTEST_SKIP() << "the full btsm is not part of this build";
+#else
+  test::TempDir home;
+  test::FakeModuleOptions o;
+  o.sample_period = std::chrono::milliseconds(2);
+  ModuleOnPty m(o);
+  ASSERT_EQ(run(home, "set-config channel_role_5 shaft --port " + m.pty.path).code, 0);
+  Result r = run(home, "record --port " + m.pty.path + " --out " + home.path + "/rec.csv --samples 4");
+  ASSERT_EQ(r.code, 0) << r.err;
+  std::ifstream rec(home.path + "/rec.csv");
+  std::stringstream text;
+  text << rec.rdbuf();
+  EXPECT_NE(text.str().find("T5=shaft"), std::string::npos) << text.str();
+  r = run(home, "fit " + home.path + "/rec.csv --preset spindle4 --sum-c 20478.7 --out " + home.path + "/m.json", BTSM_CLI);
+  EXPECT_NE(r.err.find("from the recordings' channel roles:"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("shaft=T5"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("no column 'T4'"), std::string::npos) << r.err;  // the preset's default column is gone
+#endif
 }
 
 TEST(LinkCli, KeysAndFlashModel) {

@@ -1,5 +1,8 @@
-// `--column NODE=COLUMN`: moving, dropping and refusing measurement mappings.
+// `--column NODE=COLUMN`: moving, dropping and refusing measurement mappings; the same taken from
+// a module recording's channel roles.
+#include "host/thermal/fit.hpp"
 #include "host/thermal/network.hpp"
+#include "host/thermal/recording.hpp"
 
 #include <gtest/gtest.h>
 
@@ -46,6 +49,73 @@ TEST(ColumnMap, BadSpecsNameWhatIsWrong) {
   EXPECT_NE(message("shaftT5").find("expected NODE=COLUMN"), std::string::npos);
   EXPECT_NE(message("spindle=T5").find("no node 'spindle'"), std::string::npos);
   EXPECT_NE(message("shaft=T1").find("already measures node 'rear_bearing'"), std::string::npos);
+}
+
+// A recording as `btsm record` writes it: ambient channel T4 is ambient_c, not a T column.
+th::Recording module_recording(const std::string& roles, const std::string& source = "rec.csv") {
+  std::string text = "# channel_roles: " + roles + "\n# ambient_channel: T4\n"
+                     "time_s,speed_rpm,ambient_c,T1,T2,T3,T5\n0,6000,20,21,22,23,24\n5,6000,20,21,22,23,24\n";
+  return th::parse_recording_csv(text, source);
+}
+
+TEST(ColumnMap, ChannelRolesOfAModuleRecordingPlaceTheProbes) {
+  th::Network net = th::preset_network("spindle4");
+  const auto rec = module_recording("T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft");
+  const std::string said = th::map_measurements(net, {rec}, {});
+  EXPECT_EQ(column_of(net, "shaft"), "T5");
+  EXPECT_EQ(column_of(net, "housing"), "T2");
+  EXPECT_NE(said.find("shaft=T5"), std::string::npos) << said;
+  EXPECT_NO_THROW(th::measurement_columns(net, rec));
+}
+
+TEST(ColumnMap, ASpareFifthProbeLeavesTheShaftUnmeasuredAndSaysSo) {
+  th::Network net = th::preset_network("spindle4");
+  const auto rec = module_recording("T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=spare");
+  const std::string said = th::map_measurements(net, {rec}, {});
+  EXPECT_EQ(column_of(net, "shaft"), "");
+  EXPECT_EQ(net.measurements.size(), 3u);
+  EXPECT_NE(said.find("shaft=(none)"), std::string::npos) << said;
+  // --column wins over the roles.
+  th::Network explicit_net = th::preset_network("spindle4");
+  th::map_measurements(explicit_net, {rec}, {"shaft=T5"});
+  EXPECT_EQ(column_of(explicit_net, "shaft"), "T5");
+}
+
+TEST(ColumnMap, SwappedProbesAreFollowedWithoutACollision) {
+  th::Network net = th::preset_network("spindle4");
+  const auto rec = module_recording("T1=rear_bearing,T2=front_bearing,T3=housing,T4=ambient,T5=shaft");
+  th::map_measurements(net, {rec}, {});
+  EXPECT_EQ(column_of(net, "front_bearing"), "T2");
+  EXPECT_EQ(column_of(net, "housing"), "T3");
+}
+
+TEST(ColumnMap, RolesThatAreOnlyDefaultsOrAbsentChangeNothing) {
+  const th::Network preset = th::preset_network("spindle4");
+  th::Network net = preset;
+  const auto defaults = module_recording(
+      "T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft (firmware defaults, not read from the module)");
+  EXPECT_EQ(th::map_measurements(net, {defaults}, {}), "");
+  EXPECT_EQ(column_of(net, "shaft"), "T4");
+  const auto plain = th::parse_recording_csv("time_s,speed_rpm,ambient_c,T1,T2,T3,T4\n0,0,20,20,20,20,20\n", "plain.csv");
+  EXPECT_EQ(th::map_measurements(net, {plain}, {}), "");
+  EXPECT_EQ(net.measurements.size(), preset.measurements.size());
+}
+
+TEST(ColumnMap, RecordingsThatDisagreeAreRefusedNamingBoth) {
+  th::Network net = th::preset_network("spindle4");
+  const auto a = module_recording("T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft", "a.csv");
+  const auto b = module_recording("T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=spare", "b.csv");
+  try {
+    th::map_measurements(net, {a, b}, {});
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    const std::string m = e.what();
+    EXPECT_NE(m.find("'shaft'"), std::string::npos) << m;
+    EXPECT_NE(m.find("a.csv"), std::string::npos) << m;
+    EXPECT_NE(m.find("b.csv"), std::string::npos) << m;
+    EXPECT_NE(m.find("--column shaft="), std::string::npos) << m;
+  }
+  EXPECT_NO_THROW(th::map_measurements(net, {a, b}, {"shaft=T5"}));  // told explicitly: fine
 }
 
 }  // namespace
