@@ -32,7 +32,8 @@
 //            +------------------------------------------------------------------------+
 //   N  = enter_samples        consecutive samples to ENTER warn or alarm (persistence)
 //   Mw = warn_clear_samples   consecutive "normal" samples to leave WARN
-//   Ma = alarm_clear_samples  consecutive "normal" samples to auto-clear an ALARM
+//   Ma = alarm_clear_samples  consecutive "normal" samples to auto-clear an ALARM; 0 = never
+//        (a latched alarm in the strict sense: only an acknowledgement ends it)
 //   Mf = fault_clear_samples  consecutive samples without the fault flag to leave SENSOR_FAULT
 //   ack = acknowledge(): an ALARM whose condition is still present stays latched but is marked
 //         acknowledged and then leaves as soon as alarm_clear holds (to WARN if |residual| is still
@@ -101,7 +102,7 @@ struct DiagChannelLimits {
 struct DiagTiming {
   uint8_t enter_samples = 3;         // N: persistence to enter WARN/ALARM (>= 1)
   uint8_t warn_clear_samples = 3;    // Mw
-  uint8_t alarm_clear_samples = 60;  // Ma: 5 min at 5 s
+  uint8_t alarm_clear_samples = 60;  // Ma: 5 min at 5 s; 0 = never (held until acknowledged)
   uint8_t fault_clear_samples = 3;   // Mf
   uint16_t hysteresis_permille = 200;  // exit threshold = entry * (1 - h); 200 = 20 % below entry
   uint16_t abs_hysteresis_mK = 1000;   // absolute limit exit = limit - this
@@ -196,8 +197,9 @@ class DiagChannel {
           state_ = c.normal ? DiagState::kNormal : DiagState::kWarn;
           break;
         }
+        if (t.alarm_clear_samples == 0) break;  // held until acknowledged
         count_ = c.normal ? sat_inc(count_) : 0;
-        if (count_ >= (t.alarm_clear_samples == 0 ? 1 : t.alarm_clear_samples)) {
+        if (count_ >= t.alarm_clear_samples) {
           latched_ = false;
           acked_ = false;
           alarm_run_ = 0;

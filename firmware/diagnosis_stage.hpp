@@ -20,9 +20,9 @@ class DiagnosisStage {
   // Rise-rate window: 4 samples (15 s at the default 5 s period); RAM 16 B per channel.
   static constexpr uint8_t kRiseWindow = 4;
 
-  // latch: ALARM auto-clears only after the longest run the counter allows (255 samples, > 21 min
-  // at 5 s) -- in practice it waits for ACK_ALARM; without latch after 60 samples (5 min).
-  void configure(bool latch) { timing_.alarm_clear_samples = latch ? 255 : 60; }
+  // latch: an ALARM is held until ACK_ALARM (then it clears as soon as its condition is gone);
+  // without latch it clears after 60 consecutive normal samples (5 min at 5 s).
+  void configure(bool latch) { timing_.alarm_clear_samples = latch ? 0 : 60; }
 
   // limits: per-channel limits of the active model, or null without a model.
   // limits: per-channel limits of the active model, or null without a model (common defaults).

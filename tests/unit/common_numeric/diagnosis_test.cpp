@@ -111,6 +111,21 @@ TEST_F(DiagTransition, AlarmIsLatchedThenAutoClearsAfterMaNormalSamples) {
   EXPECT_FALSE(ch.alarm_latched());
 }
 
+// Ma = 0: a latched alarm in the strict sense -- however long the channel reads normal, only an
+// acknowledgement ends it (the module's alarm_latch 1).
+TEST_F(DiagTransition, AlarmWithoutAutoClearIsHeldUntilAcknowledged) {
+  t.alarm_clear_samples = 0;
+  drive_to_alarm();
+  EXPECT_EQ(feed(residual(0), 5000), DiagState::kAlarm);  // 7 h at 5 s: still there
+  EXPECT_TRUE(ch.alarm_latched());
+  ch.acknowledge();
+  EXPECT_EQ(feed(residual(0)), DiagState::kNormal);
+  EXPECT_FALSE(ch.alarm_latched());
+  // A new alarm is held again.
+  drive_to_alarm();
+  EXPECT_EQ(feed(residual(0), 300), DiagState::kAlarm);
+}
+
 TEST_F(DiagTransition, AlarmToNormalOnAcknowledgeWhenClear) {
   drive_to_alarm();
   feed(residual(0));

@@ -52,5 +52,28 @@ TEST(DiagnosisStage, ThermalRolesGetTheModelsLimitsOthersOnlySensorFaults) {
   EXPECT_EQ(s.state_of_channel5(ChannelRole::Disabled), normal);
 }
 
+// alarm_latch 1 holds an ALARM until ACK_ALARM however long the cause is gone (the counter used to
+// let it go after 255 samples, 21 min); alarm_latch 0 lets it go after 60 normal samples.
+TEST(DiagnosisStage, LatchedAlarmIsHeldUntilAcknowledged) {
+  for (bool latch : {true, false}) {
+    Sweeps s;
+    s.roles[4] = static_cast<uint8_t>(ChannelRole::Shaft);
+    DiagnosisStage d;
+    d.configure(latch);
+    for (int k = 0; k < 5; ++k) d.evaluate(s.limits, s.temp_mK, s.predicted_mK, s.faults, s.roles, 5000);
+    ASSERT_EQ(d.state(4), static_cast<uint8_t>(DiagState::kAlarm));
+    s.temp_mK[4] = s.predicted_mK[4];  // the cause is gone
+    for (int k = 0; k < 1000; ++k) d.evaluate(s.limits, s.temp_mK, s.predicted_mK, s.faults, s.roles, 5000);
+    if (latch) {
+      EXPECT_EQ(d.state(4), static_cast<uint8_t>(DiagState::kAlarm));
+      EXPECT_TRUE(d.alarm_latched());
+      d.acknowledge();
+      d.evaluate(s.limits, s.temp_mK, s.predicted_mK, s.faults, s.roles, 5000);
+    }
+    EXPECT_EQ(d.state(4), static_cast<uint8_t>(DiagState::kNormal)) << "latch " << latch;
+    EXPECT_FALSE(d.alarm_latched());
+  }
+}
+
 }  // namespace
 }  // namespace btsm
