@@ -94,8 +94,8 @@ inline bool write_frame(Sink& sink, uint8_t type, uint8_t seq, const uint8_t* pa
 //   n = seal_raw_frame(raw, type, seq, len); StuffCursor c; start_stuffed(c);
 //   until resume_stuffed(put, c, raw, n) returns true   (raw unchanged meanwhile)
 // Same wire bytes as write_frame; per byte a load, the escape test and the sink call (on the AVR
-// ~45 cycles a byte with the ring write, against ~77 for an encoder that builds each byte and
-// its CRC on the fly).
+// ~26 cycles a byte into the UART ring's claimed space, against ~77 for an encoder that builds
+// each byte and its CRC on the fly).
 namespace detail {
 // Header and CRC around a payload already at raw + kHeaderSize (len <= kMaxPayload).
 inline uint8_t seal(uint8_t* raw, uint8_t version, uint8_t type, uint8_t seq, uint8_t len) {

@@ -216,6 +216,14 @@ inline const char* channel_role_name(uint8_t role) {
   return nullptr;
 }
 
+// A role that names a measured thermal point (a bearing, the housing, ...): it gets the model's
+// limits in the module, and a network node of that name is what the channel measures. Disabled,
+// ambient (the boundary) and spare channels are not.
+inline bool is_thermal_role(uint8_t role) {
+  return role != static_cast<uint8_t>(ChannelRole::Disabled) && role != static_cast<uint8_t>(ChannelRole::Ambient) &&
+         role != static_cast<uint8_t>(ChannelRole::Spare);
+}
+
 // Contract default wiring: ch1 rear bearing, ch2 housing, ch3 front bearing, ch4 ambient, ch5 spare.
 inline ChannelRole default_channel_role(uint8_t channel_index) {
   switch (channel_index) {

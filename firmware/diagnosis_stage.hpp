@@ -24,7 +24,6 @@ class DiagnosisStage {
   // without latch it clears after 60 consecutive normal samples (5 min at 5 s).
   void configure(bool latch) { timing_.alarm_clear_samples = latch ? 0 : 60; }
 
-  // limits: per-channel limits of the active model, or null without a model.
   // limits: per-channel limits of the active model, or null without a model (common defaults).
   // Channels are updated one at a time with one DiagInput/DiagChannelLimits on the stack: an
   // array of them with default initialisers would cost an SRAM image on AVR.
@@ -70,9 +69,7 @@ class DiagnosisStage {
   // spent ~150 cycles per channel moving spilled loop pointers.
   BTSM_NOINLINE void evaluate_channel(uint8_t j, Sweep& sw) {
     const uint8_t role = sw.roles[j];
-    const bool thermal = role != static_cast<uint8_t>(wire::ChannelRole::Disabled) &&
-                         role != static_cast<uint8_t>(wire::ChannelRole::Ambient) &&
-                         role != static_cast<uint8_t>(wire::ChannelRole::Spare);
+    const bool thermal = wire::is_thermal_role(role);
     const bool fault =
         (sw.fault_bits[j] & static_cast<uint8_t>(~wire::kFaultKalmanReject & ~wire::kStatusDisabled)) != 0;
     fault_[j] = fault && role != static_cast<uint8_t>(wire::ChannelRole::Disabled);

@@ -18,14 +18,12 @@
 //                                     // transfer runs, low means "conversion ready".
 // board.serial -- byte stream to the BLE bridge (UART 115200 8N1), never blocks:
 //   bool     read(uint8_t& b);        // false when nothing is buffered
-//   bool     write(uint8_t b);        // false when the transmit buffer is full (byte not taken)
-//   uint16_t tx_free();               // bytes that write() accepts right now
-//   uint8_t* tx_claim(uint8_t& n);    // zero-copy transmit: the free transmit space that is
+//   uint8_t* tx_claim(uint8_t& n);    // transmit, zero-copy: the free transmit space that is
 //                                     // contiguous in memory, n bytes of it (0: full); fill a
 //                                     // prefix of it, then
 //   void     tx_commit(uint8_t n);    // hand its first n (<= the claimed n) bytes to the UART.
 //                                     // Claim again after a commit (a ring wraps: two claims
-//                                     // may be needed for all of tx_free()).
+//                                     // may be needed for all of its free space).
 // board.clock -- monotonic time:
 //   uint32_t millis();
 // board.storage -- EEPROM-like byte storage, kSize bytes, power-loss behaviour of real EEPROM:
@@ -64,8 +62,6 @@ BTSM_HAL_REQUIRE(SpiTransfer, uint8_t, BTSM_BOARD.spi.transfer(uint8_t(0)))
 BTSM_HAL_REQUIRE(SpiMisoHigh, bool, BTSM_BOARD.spi.miso_high())
 
 BTSM_HAL_REQUIRE(SerialRead, bool, BTSM_BOARD.serial.read(::btsm::hal::detail::lvalue<uint8_t>()))
-BTSM_HAL_REQUIRE(SerialWrite, bool, BTSM_BOARD.serial.write(uint8_t(0)))
-BTSM_HAL_REQUIRE(SerialTxFree, uint16_t, BTSM_BOARD.serial.tx_free())
 BTSM_HAL_REQUIRE(SerialTxClaim, uint8_t*, BTSM_BOARD.serial.tx_claim(::btsm::hal::detail::lvalue<uint8_t>()))
 BTSM_HAL_REQUIRE(SerialTxCommit, void, BTSM_BOARD.serial.tx_commit(uint8_t(0)))
 
@@ -101,8 +97,6 @@ struct CheckBoard {
   static_assert(contract::SpiTransfer<Board>::value, "Board::spi.transfer(uint8_t) -> uint8_t missing");
   static_assert(contract::SpiMisoHigh<Board>::value, "Board::spi.miso_high() -> bool missing");
   static_assert(contract::SerialRead<Board>::value, "Board::serial.read(uint8_t&) -> bool missing");
-  static_assert(contract::SerialWrite<Board>::value, "Board::serial.write(uint8_t) -> bool missing");
-  static_assert(contract::SerialTxFree<Board>::value, "Board::serial.tx_free() -> uint16_t missing");
   static_assert(contract::SerialTxClaim<Board>::value, "Board::serial.tx_claim(uint8_t&) -> uint8_t* missing");
   static_assert(contract::SerialTxCommit<Board>::value, "Board::serial.tx_commit(uint8_t) -> void missing");
   static_assert(contract::ClockMillis<Board>::value, "Board::clock.millis() -> uint32_t missing");

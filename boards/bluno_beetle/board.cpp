@@ -34,9 +34,9 @@ extern "C" const uint8_t btsm_device_key_record[btsm::device_key::kRecordSize]
 #endif
 };
 
-// Transmit ring, shared with the inline Serial::write() in board.hpp.
+// Transmit ring, shared with the inline Serial::tx_claim/tx_commit in board.hpp.
 volatile uint8_t btsm::bluno::detail::tx_buf[btsm::bluno::kTxBufferBytes];
-volatile uint8_t btsm::bluno::detail::tx_head;  // written by Serial::write
+volatile uint8_t btsm::bluno::detail::tx_head;  // written by Serial::tx_commit
 volatile uint8_t btsm::bluno::detail::tx_tail;  // written by the UDRE ISR
 volatile uint32_t btsm::bluno::detail::ms_ticks;  // written by the tick ISR
 
@@ -169,12 +169,6 @@ bool Serial::read(uint8_t& b) {
   b = rx_buf[rx_tail];
   rx_tail = ring_next(rx_tail, kRxBufferBytes);
   return true;
-}
-
-uint16_t Serial::tx_free() {
-  const uint8_t head = tx_head, tail = tx_tail;
-  const uint8_t used = static_cast<uint8_t>(head >= tail ? head - tail : head + kTxBufferBytes - tail);
-  return static_cast<uint16_t>(kTxBufferBytes - 1 - used);
 }
 
 uint32_t Clock::millis() {

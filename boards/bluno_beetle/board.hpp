@@ -55,17 +55,6 @@ extern volatile uint32_t ms_ticks;  // 1 ms tick count (little-endian: its first
 
 struct Serial {
   static bool read(uint8_t& b);
-  // Inline: a frame is ~60 calls in a row (the ring index wraps by compare, there is no divider).
-  static BTSM_BOARD_INLINE bool write(uint8_t b) {
-    const uint8_t head = detail::tx_head;  // only this function writes it
-    const uint8_t next = head + 1 == kTxBufferBytes ? 0 : static_cast<uint8_t>(head + 1);
-    if (next == detail::tx_tail) return false;
-    detail::tx_buf[head] = b;
-    detail::tx_head = next;
-    UCSR0B |= (1 << UDRIE0);
-    return true;
-  }
-  static uint16_t tx_free();
   // Zero-copy transmit (the frame encoder stuffs its bytes straight into the ring): from head up
   // to the slot before tail, or to the end of the array when tail is not ahead of head. One
   // slot always stays empty (head == tail means empty). The tail read is a snapshot: the UDRE
@@ -88,7 +77,7 @@ struct Serial {
     asm volatile("" ::: "memory");
     uint8_t head = static_cast<uint8_t>(detail::tx_head + n);
     if (head == kTxBufferBytes) head = 0;
-    detail::tx_head = head;
+    detail::tx_head = head;  // only tx_commit writes it
     UCSR0B |= (1 << UDRIE0);
   }
 };

@@ -46,23 +46,11 @@ bool NativeBoard::Serial::read(uint8_t& byte) {
   return true;
 }
 
-bool NativeBoard::Serial::write(uint8_t byte) {
-  if (b->tx_ring_.size() >= b->opt_.tx_buffer_bytes) return false;
-  if (b->tx_ring_.empty() && b->next_tx_us_ < b->now_us_) b->next_tx_us_ = b->now_us_;
-  b->tx_ring_.push_back(byte);
-  if (b->byte_time_us() == 0) b->advance_us(0);
-  return true;
-}
-
-uint16_t NativeBoard::Serial::tx_free() {
-  return static_cast<uint16_t>(b->opt_.tx_buffer_bytes - b->tx_ring_.size());
-}
-
 // The AVR ring hands out its free space in up to two contiguous pieces; a staging buffer of the
 // whole free space models the contract (the encoder must not assume more than one claim is
-// needed, and it gets at most tx_free() bytes).
+// needed, and it gets at most the ring's free space).
 uint8_t* NativeBoard::Serial::tx_claim(uint8_t& n) {
-  const uint16_t free = tx_free();
+  const size_t free = b->opt_.tx_buffer_bytes - b->tx_ring_.size();
   n = static_cast<uint8_t>(free > 255 ? 255 : free);
   b->tx_claimed_.assign(n, 0xA5);  // garbage where nothing was written
   return b->tx_claimed_.data();
@@ -70,8 +58,11 @@ uint8_t* NativeBoard::Serial::tx_claim(uint8_t& n) {
 
 void NativeBoard::Serial::tx_commit(uint8_t n) {
   if (n > b->tx_claimed_.size()) throw std::logic_error("tx_commit: more bytes than claimed");
-  for (uint8_t i = 0; i < n; ++i) write(b->tx_claimed_[i]);
+  if (n == 0) return;
+  if (b->tx_ring_.empty() && b->next_tx_us_ < b->now_us_) b->next_tx_us_ = b->now_us_;
+  b->tx_ring_.insert(b->tx_ring_.end(), b->tx_claimed_.begin(), b->tx_claimed_.begin() + n);
   b->tx_claimed_.clear();
+  if (b->byte_time_us() == 0) b->advance_us(0);
 }
 
 void NativeBoard::host_send(const uint8_t* data, size_t n) {

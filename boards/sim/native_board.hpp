@@ -66,8 +66,6 @@ class NativeBoard {
   struct Serial {
     NativeBoard* b;
     bool read(uint8_t& byte);
-    bool write(uint8_t byte);
-    uint16_t tx_free();
     uint8_t* tx_claim(uint8_t& n);
     void tx_commit(uint8_t n);
   };

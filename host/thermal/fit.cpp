@@ -4,6 +4,8 @@
 
 #include "simulator.hpp"
 
+#include "common/wire_messages.hpp"
+
 #include <Eigen/Cholesky>
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
@@ -802,12 +804,14 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec) {
   return cols;
 }
 
-std::vector<std::string> column_specs_from_roles(const Network& net, const std::vector<Recording>& recs,
-                                                 const std::vector<std::string>& explicit_specs) {
+namespace {
+// node name -> the column its role names ("" = no channel has it), from the recordings'
+// channel_roles metadata; nodes in `explicit_specs` are left out. See map_measurements().
+std::map<std::string, std::string> columns_from_roles(const Network& net, const std::vector<Recording>& recs,
+                                                      const std::vector<std::string>& explicit_specs) {
   std::map<std::string, std::string> explicit_nodes;
   for (const auto& spec : explicit_specs) explicit_nodes[spec.substr(0, spec.find('='))] = spec;
-  // node name -> (column, or "" for none; the recording it came from)
-  std::map<std::string, std::pair<std::string, std::string>> chosen;
+  std::map<std::string, std::pair<std::string, std::string>> chosen;  // node -> (column, recording)
   for (const auto& rec : recs) {
     const std::string meta = rec.meta_value("channel_roles");
     if (meta.empty() || meta.find('(') != std::string::npos) continue;  // absent, or defaults
@@ -816,41 +820,41 @@ std::vector<std::string> column_specs_from_roles(const Network& net, const std::
     std::string pair;
     while (std::getline(ss, pair, ',')) {
       const auto eq = pair.find('=');
-      if (eq == std::string::npos) continue;
-      column_of_role[pair.substr(eq + 1)] = pair.substr(0, eq);
+      if (eq != std::string::npos) column_of_role[pair.substr(eq + 1)] = pair.substr(0, eq);
     }
-    for (const auto& node : net.nodes) {
-      const auto role = column_of_role.find(node.name);
-      bool is_role = false;  // only nodes named like a role are the roles' business
-      for (const char* r : {"front_bearing", "rear_bearing", "housing", "motor", "coolant", "shaft"})
-        is_role = is_role || node.name == r;
-      if (!is_role || explicit_nodes.count(node.name)) continue;
-      const std::string column = role == column_of_role.end() ? std::string() : role->second;
-      const auto prev = chosen.find(node.name);
+    for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r) {
+      const std::string role = wire::channel_role_name(r);
+      if (!wire::is_thermal_role(r) || net.node_index(role) < 0 || explicit_nodes.count(role)) continue;
+      const auto it = column_of_role.find(role);
+      const std::string column = it == column_of_role.end() ? std::string() : it->second;
+      const auto prev = chosen.find(role);
       if (prev == chosen.end()) {
-        chosen[node.name] = {column, rec.source};
+        chosen[role] = {column, rec.source};
       } else if (prev->second.first != column) {
-        throw std::invalid_argument("channel roles: " + prev->second.second + " has node '" + node.name + "' on " +
+        throw std::invalid_argument("channel roles: " + prev->second.second + " has node '" + role + "' on " +
                                     (prev->second.first.empty() ? "no channel" : prev->second.first) + ", " +
                                     rec.source + " on " + (column.empty() ? "no channel" : column) +
-                                    "; say which with --column " + node.name + "=COLUMN");
+                                    "; say which with --column " + role + "=COLUMN");
       }
     }
   }
-  // Every chosen node loses its old column first, so swapped probes do not collide.
-  std::vector<std::string> specs;
-  for (const auto& [node, c] : chosen) specs.push_back(node + "=");
-  for (const auto& [node, c] : chosen)
-    if (!c.first.empty()) specs.push_back(node + "=" + c.first);
-  return specs;
+  std::map<std::string, std::string> out;
+  for (const auto& [node, c] : chosen) out[node] = c.first;
+  return out;
 }
+}  // namespace
 
 std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns) {
-  std::vector<std::string> specs = column_specs_from_roles(net, recs, columns);
-  std::map<std::string, std::string> column_of;  // the last spec of a node decides
-  for (const auto& sp : specs) column_of[sp.substr(0, sp.find('='))] = sp.substr(sp.find('=') + 1);
+  const auto from_roles = columns_from_roles(net, recs, columns);
+  // Every chosen node loses its old column first, so swapped probes do not collide; --column last.
+  std::vector<std::string> specs;
   std::string said;
-  for (const auto& [node, column] : column_of) said += " " + node + "=" + (column.empty() ? "(none)" : column);
+  for (const auto& [node, column] : from_roles) {
+    specs.push_back(node + "=");
+    said += " " + node + "=" + (column.empty() ? "(none)" : column);
+  }
+  for (const auto& [node, column] : from_roles)
+    if (!column.empty()) specs.push_back(node + "=" + column);
   specs.insert(specs.end(), columns.begin(), columns.end());
   remap_measurements(net, specs);
   return said;

@@ -103,19 +103,15 @@ Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& 
 // Channel index in `rec` of each measurement of `net`; throws naming the missing column.
 std::vector<int> measurement_columns(const Network& net, const Recording& rec);
 // Which column measures which node, from the recordings' `channel_roles` metadata (written by
-// `btsm record` as "T1=rear_bearing,...,T5=shaft"): a node whose name is a channel role is measured
-// by the channel with that role, or by none ("NODE=" drops it) when no channel has it -- the
-// spindle4 nodes rear_bearing, housing, front_bearing and shaft are role names, so a module
-// recording says itself where its probes are. Returned as remap_measurements() specs ("NODE=" for
-// every such node first, then "NODE=COLUMN").
-// Nodes named in `explicit_specs` (--column) are left to those. Recordings without the metadata,
-// or with roles that are firmware defaults rather than read from the module, contribute nothing;
-// recordings that disagree throw std::invalid_argument naming the node and both files.
-std::vector<std::string> column_specs_from_roles(const Network& net, const std::vector<Recording>& recs,
-                                                 const std::vector<std::string>& explicit_specs);
-// column_specs_from_roles(), then `columns` (--column) on top, applied to `net` with
-// remap_measurements(). Returns what the roles decided (" node=column ...", "(none)" for a dropped
-// node), or "" when they decided nothing. Throws std::invalid_argument as those two do.
+// `btsm record` as "T1=rear_bearing,...,T5=shaft"), then `columns` (--column) on top, applied to
+// `net` with remap_measurements(). A node named like a thermal role (common/wire_messages.hpp
+// is_thermal_role: the spindle4 nodes rear_bearing, housing, front_bearing, shaft) is measured by
+// the channel with that role, or by none when no channel has it -- a module recording says itself
+// where its probes are. Nodes named in `columns` are left to those. Recordings without the
+// metadata, or with roles that are firmware defaults rather than read from the module, contribute
+// nothing. Returns what the roles decided (" node=column ...", "(none)" for a dropped node), or ""
+// when they decided nothing. Throws std::invalid_argument when recordings disagree (naming the
+// node and both files) or as remap_measurements() does.
 std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns);
 // Initial state guess from the first row (unmeasured nodes = ambient + mean measured rise).
 Eigen::VectorXd first_sample_state(const Network& net, const Recording& rec);
