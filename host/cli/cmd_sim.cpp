@@ -1,5 +1,5 @@
 // btsm sim-module: a simulated BTSM module on a pty (sim engineer).
-#include "boards/sim/runner/sim_module.hpp"
+#include "host/sim/runner/sim_module.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
 

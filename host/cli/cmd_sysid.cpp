@@ -1,15 +1,12 @@
-// btsm fit | validate | reduce  (and `heat`, registered through sysid_heat_command.hpp)
+// btsm fit | validate | reduce
 #include "cli_support.hpp"
 #include "commands.hpp"
-#include "sysid_heat_command.hpp"
 
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
 #include "host/thermal/reduce.hpp"
 #include "host/thermal/validate.hpp"
-#ifdef BTSM_HAVE_REPORT
 #include "host/report/plot.hpp"
-#endif
 
 #include <fmt/core.h>
 
@@ -105,7 +102,6 @@ struct ValidateArgs {
 };
 
 void plot_validation(const Network& net, const Recording& rec, const RecordingValidation& v, const std::string& dir) {
-#ifdef BTSM_HAVE_REPORT
   namespace rp = btsm::report;
   const auto cols = measurement_columns(net, rec);
   std::vector<double> t_h(rec.rows());
@@ -135,10 +131,6 @@ void plot_validation(const Network& net, const Recording& rec, const RecordingVa
   const std::string stem = (std::filesystem::path(dir) / ("validate_" + std::filesystem::path(rec.source).stem().string())).string();
   rp::save_panels({temps, resid}, stem);
   std::cerr << "validate: wrote " << stem << ".png/.svg\n";
-#else
-  (void)net; (void)rec; (void)v; (void)dir;
-  throw CommandError(kExitUsage, "--plots: this build has no plotting library (btsm_report)");
-#endif
 }
 
 json metrics_json(const ErrorMetrics& m) {
@@ -380,9 +372,6 @@ void register_sysid_commands(CLI::App& app) {
     c->add_flag("--json", a->json_out, "Print the reduced model JSON (per speed hsv, pole_bt, pole_dc) to stdout");
     c->callback([a] { run_reduce(*a); });
   }
-#ifdef BTSM_HAVE_HEAT_COMMAND
-  register_heat_command(app);
-#endif
 }
 
 }  // namespace btsm::cli

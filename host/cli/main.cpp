@@ -12,24 +12,13 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("btsm ") + BTSM_VERSION);
   app.require_subcommand(1);
   app.fallthrough();
-#ifdef BTSM_HAVE_CMD_RTD
   btsm::cli::register_rtd_commands(app);
-#endif
-#ifdef BTSM_HAVE_CMD_LINK
   btsm::cli::register_link_commands(app);
-#endif
-#ifdef BTSM_HAVE_CMD_SYSID
   btsm::cli::register_sysid_commands(app);
-#endif
-#ifdef BTSM_HAVE_CMD_RESIDUAL
+  btsm::cli::register_heat_commands(app);
   btsm::cli::register_residual_commands(app);
-#endif
-#ifdef BTSM_HAVE_CMD_SIM
   btsm::cli::register_sim_commands(app);
-#endif
-#ifdef BTSM_HAVE_CMD_DEMO
   btsm::cli::register_demo_commands(app);
-#endif
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

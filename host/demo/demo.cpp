@@ -1,7 +1,7 @@
 #include "host/demo/demo.hpp"
 
-#include "boards/sim/plant/faults.hpp"
-#include "boards/sim/runner/sim_module.hpp"
+#include "host/sim/plant/faults.hpp"
+#include "host/sim/runner/sim_module.hpp"
 #include "common/wire_messages.hpp"
 #include "firmware/device_key.hpp"
 #include "host/demo/demo_analysis.hpp"

@@ -2,7 +2,7 @@
 // What the demo asks of the simulated spindle: the paper's identification procedure (warm-ups at
 // several speeds, each followed by natural cooling, then a stepwise external-validation run) and
 // the production phase (changing speeds, then a bearing fault). Durations are simulated time.
-#include "boards/sim/plant/profile.hpp"
+#include "host/sim/plant/profile.hpp"
 
 #include <string>
 #include <vector>

@@ -1,9 +1,7 @@
 // Residual loop report (see residual_report.hpp).
 #include "host/residual/residual_report.hpp"
 
-#ifdef BTSM_RESIDUAL_HAVE_REPORT
 #include "host/report/plot.hpp"
-#endif
 
 #include <fmt/core.h>
 
@@ -137,7 +135,6 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     if (!f) throw std::runtime_error("cannot write " + dir + "/residual_table.txt");
     f << format_table(r);
   }
-#ifdef BTSM_RESIDUAL_HAVE_REPORT
   namespace rp = btsm::report;
   if (check.empty() || r.check_resid_before.empty()) return;
   const thermal::Recording& rec = check[0];
@@ -213,9 +210,6 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     }
     rp::save_plot(p, dir + "/residual_heat_trace");
   }
-#else
-  (void)check;
-#endif
 }
 
 }  // namespace btsm::residual

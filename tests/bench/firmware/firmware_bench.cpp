@@ -7,8 +7,8 @@
 // BTSM_BENCH_PROFILE=1 attributes active cycles to the image's functions (by PC, from the ELF
 // symbol table) and prints the top 15 functions of the worst sweep of each measurement (=N: top N).
 #include "boards/sim/ad7794_model.hpp"
-#include "boards/sim/plant/probes.hpp"
-#include "boards/sim/runner/sim_module.hpp"
+#include "host/sim/plant/probes.hpp"
+#include "host/sim/runner/sim_module.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
 #include "tests/bench/firmware/stack_paint.hpp"
 #include "tests/hil/sim/model_upload.hpp"

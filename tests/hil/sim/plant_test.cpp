@@ -1,7 +1,7 @@
 // Spindle plant: profile/fault/effect parsing with clear errors, the shared thermal simulator
 // behind it, faults and hidden effects acting where they should.
-#include "boards/sim/plant/probes.hpp"
-#include "boards/sim/plant/spindle_plant.hpp"
+#include "host/sim/plant/probes.hpp"
+#include "host/sim/plant/spindle_plant.hpp"
 
 #include <gtest/gtest.h>
 

@@ -1,7 +1,7 @@
 // The simulated module behind a pty: a host opens the symlink like a serial port; with
 // wait_for_host the simulation pauses while nobody listens and never loses data when the host
 // reads slowly; host -> module bytes arrive (GET_INFO is answered).
-#include "boards/sim/runner/sim_module.hpp"
+#include "host/sim/runner/sim_module.hpp"
 #include "wire_capture.hpp"
 
 #include <gtest/gtest.h>

@@ -1,7 +1,7 @@
 #pragma once
 // Test helper: a SimModule driven synchronously as a host link (send / step / capture), with the
 // plant's truth recorded at every step for comparison with the SAMPLE frames.
-#include "boards/sim/runner/sim_module.hpp"
+#include "host/sim/runner/sim_module.hpp"
 #include "wire_capture.hpp"
 
 #include <array>

@@ -2,7 +2,7 @@
 // model is uploaded; every boot afterwards reports a valid model, the old or the new one. And a
 // power cycle in the middle of measuring: the module comes back and measures again.
 #include "avr_link.hpp"
-#include "boards/sim/plant/probes.hpp"
+#include "host/sim/plant/probes.hpp"
 #include "tests/hil/sim/model_upload.hpp"
 
 #include <gtest/gtest.h>

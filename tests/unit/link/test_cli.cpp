@@ -35,7 +35,7 @@ std::string slurp(const std::string& p) {
 }
 
 // Runs the CLI with HOME=<home>, XDG_CONFIG_HOME unset.
-Result run(const test::TempDir& home, const std::string& args, const std::string& cli = BTSM_LINK_CLI) {
+Result run(const test::TempDir& home, const std::string& args, const std::string& cli = BTSM_CLI) {
   const std::string out = home.path + "/stdout.txt", err = home.path + "/stderr.txt";
   const std::string cmd = "env -u XDG_CONFIG_HOME HOME='" + home.path + "' " + cli + " " + args + " >'" + out +
                           "' 2>'" + err + "' </dev/null";
@@ -114,9 +114,6 @@ TEST(LinkCli, InfoRecordSetConfigAgainstTheFakeModule) {
 // The module's channel roles travel with the recording: `fit` places the probes by them (here the
 // fifth probe becomes the shaft node's) and says so, before it fits.
 TEST(LinkCli, FitTakesTheProbesFromTheRecordedChannelRoles) {
-#ifndef BTSM_CLI
-  GTEST_SKIP() << "the full btsm is not part of this build";
-#else
   test::TempDir home;
   test::FakeModuleOptions o;
   o.sample_period = std::chrono::milliseconds(2);
@@ -132,7 +129,6 @@ TEST(LinkCli, FitTakesTheProbesFromTheRecordedChannelRoles) {
   EXPECT_NE(r.err.find("from the recordings' channel roles:"), std::string::npos) << r.err;
   EXPECT_NE(r.err.find("shaft=T5"), std::string::npos) << r.err;
   EXPECT_EQ(r.err.find("no column 'T4'"), std::string::npos) << r.err;  // the preset's default column is gone
-#endif
 }
 
 TEST(LinkCli, KeysAndFlashModel) {

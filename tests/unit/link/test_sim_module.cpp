@@ -1,6 +1,6 @@
 // The link against the real simulated module (native firmware core + AD7794 model + spindle
 // plant behind a pty): record, and a model upload with the development key and read-back.
-#include "boards/sim/runner/sim_module.hpp"
+#include "host/sim/runner/sim_module.hpp"
 #include "fake_module.hpp"
 #include "host/link/model_flash.hpp"
 #include "host/link/recorder.hpp"

@@ -1,4 +1,4 @@
-#include "boards/sim/plant/profile.hpp"
+#include "host/sim/plant/profile.hpp"
 
 #include <cmath>
 #include <fstream>

@@ -1,4 +1,4 @@
-#include "boards/sim/runner/pty_bridge.hpp"
+#include "host/sim/runner/pty_bridge.hpp"
 
 #include <cerrno>
 #include <cstring>

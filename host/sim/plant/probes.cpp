@@ -1,4 +1,4 @@
-#include "boards/sim/plant/probes.hpp"
+#include "host/sim/plant/probes.hpp"
 
 #include "common/rtd.hpp"
 

@@ -1,9 +1,8 @@
 // The natively built firmware core (firmware::App<NativeBoard>) against the simulated board.
-#include "boards/sim/runner/module_board.hpp"
+#include "host/sim/runner/module_board.hpp"
 
 #include <stdexcept>
 
-#ifdef BTSM_HAVE_FIRMWARE_APP
 #include "boards/sim/native_board.hpp"
 #include "firmware/app.hpp"
 #include "firmware/device_key.hpp"
@@ -87,20 +86,9 @@ class NativeModuleBoard final : public ModuleBoard {
 
 }  // namespace
 
-bool native_board_available() { return true; }
 std::unique_ptr<ModuleBoard> make_native_board(const ModuleBoardOptions& opts) {
   return std::make_unique<NativeModuleBoard>(opts);
 }
 
 }  // namespace btsm::sim
 
-#else
-
-namespace btsm::sim {
-bool native_board_available() { return false; }
-std::unique_ptr<ModuleBoard> make_native_board(const ModuleBoardOptions&) {
-  throw std::runtime_error("native board: this build has no firmware core (firmware/app.hpp missing)");
-}
-}  // namespace btsm::sim
-
-#endif

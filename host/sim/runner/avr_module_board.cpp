@@ -1,5 +1,5 @@
 // The real AVR image in simavr with the AD7794 model on its SPI bus.
-#include "boards/sim/runner/module_board.hpp"
+#include "host/sim/runner/module_board.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
 #include "firmware/device_key.hpp"
 

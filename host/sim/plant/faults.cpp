@@ -1,6 +1,6 @@
-#include "boards/sim/plant/faults.hpp"
+#include "host/sim/plant/faults.hpp"
 
-#include "boards/sim/plant/profile.hpp"
+#include "host/sim/plant/profile.hpp"
 
 #include <cmath>
 #include <sstream>

@@ -1,13 +1,11 @@
 // `btsm heat MODEL.json REC.csv`: inverse estimation of time-varying heat sources (heat_inverse.hpp).
-#include "sysid_heat_command.hpp"
+#include "commands.hpp"
 
 #include "cli_support.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
-#ifdef BTSM_HAVE_REPORT
 #include "host/report/plot.hpp"
-#endif
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -80,7 +78,6 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
     f << "alpha_K2_per_W2,rss_K2,seminorm_W2,dof,gcv\n";
     for (const auto& s : r.scan) f << fmt::format("{:.6g},{:.8g},{:.8g},{:.6g},{:.8g}\n", s.alpha, s.rss_k2, s.seminorm_w2, s.dof, s.gcv);
   }
-#ifdef BTSM_HAVE_REPORT
   namespace rp = btsm::report;
   std::vector<rp::Plot> panels;
   rp::Plot src{"Estimated heat sources (" + a.method + ", alpha by " + r.rule + fmt::format(" = {:.3g})", r.alpha), "time [h]", "heat [W]", {}, false};
@@ -121,7 +118,6 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
     panels.push_back(scan);
   }
   rp::save_panels(panels, a.out_dir + "/heat_sources");
-#endif
 }
 
 void run_heat(const HeatArgs& a) {
@@ -226,7 +222,7 @@ void run_heat(const HeatArgs& a) {
 
 }  // namespace
 
-void register_heat_command(CLI::App& app) {
+void register_heat_commands(CLI::App& app) {
   auto args = std::make_shared<HeatArgs>();
   CLI::App* cmd = app.add_subcommand(
       "heat",

@@ -22,8 +22,8 @@
 //
 // Time advances in fixed ZOH steps of `step_s` (inputs held constant within a step; segment
 // boundaries are honoured at step resolution). Not thread-safe: the runner serialises access.
-#include "boards/sim/plant/faults.hpp"
-#include "boards/sim/plant/profile.hpp"
+#include "host/sim/plant/faults.hpp"
+#include "host/sim/plant/profile.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/simulator.hpp"
 

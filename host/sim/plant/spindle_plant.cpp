@@ -1,4 +1,4 @@
-#include "boards/sim/plant/spindle_plant.hpp"
+#include "host/sim/plant/spindle_plant.hpp"
 
 #include <cmath>
 #include <filesystem>

@@ -1,7 +1,7 @@
-#include "boards/sim/runner/sim_module.hpp"
+#include "host/sim/runner/sim_module.hpp"
 
-#include "boards/sim/plant/probes.hpp"
-#include "boards/sim/runner/pty_bridge.hpp"
+#include "host/sim/plant/probes.hpp"
+#include "host/sim/runner/pty_bridge.hpp"
 #include "host/thermal/recording.hpp"
 
 #include <algorithm>

@@ -2,7 +2,7 @@
 // Probes: the plant's true channel temperatures -> PT1000 resistances (IEC 60751 Callendar-Van
 // Dusen, common/rtd.hpp in double) and faults -> the AD7794 model's analog front end.
 #include "boards/sim/ad7794_model.hpp"
-#include "boards/sim/plant/spindle_plant.hpp"
+#include "host/sim/plant/spindle_plant.hpp"
 
 namespace btsm::sim {
 

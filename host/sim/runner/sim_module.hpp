@@ -1,5 +1,5 @@
 #pragma once
-// SimModule: a complete simulated BTSM module — the spindle plant (boards/sim/plant), the
+// SimModule: a complete simulated BTSM module — the spindle plant (host/sim/plant), the
 // register-level AD7794 and its probes, and the MCU running the firmware, either natively built
 // (BoardKind::Native: firmware::App<NativeBoard>) or the real AVR image in simavr
 // (BoardKind::Avr) — reachable like the real module through a pty ("BLE serial") or in-process.
@@ -24,8 +24,8 @@
 //   m.replace_speed_from_now({{1800, 3000}});
 //   m.wait();                       // until duration_s (or stop())
 // Every public method is thread-safe.
-#include "boards/sim/plant/spindle_plant.hpp"
-#include "boards/sim/runner/module_board.hpp"
+#include "host/sim/plant/spindle_plant.hpp"
+#include "host/sim/runner/module_board.hpp"
 
 #include <atomic>
 #include <condition_variable>

@@ -48,10 +48,9 @@ class ModuleBoard {
   virtual BoardStats stats() const = 0;
 };
 
-// Throws std::runtime_error when the board cannot be built (no ELF, native core not compiled in).
+// Throws std::runtime_error when the board cannot be built (no ELF).
 std::unique_ptr<ModuleBoard> make_native_board(const ModuleBoardOptions& opts);
 std::unique_ptr<ModuleBoard> make_avr_board(const ModuleBoardOptions& opts);
-bool native_board_available();
 
 // Raw EEPROM image helpers shared by both boards.
 std::vector<uint8_t> load_eeprom_image(const std::string& path, size_t size);  // empty if no file
