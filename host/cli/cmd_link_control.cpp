@@ -1,0 +1,160 @@
+// btsm set-speed | set-config | ack-alarm: single requests that change the module's state.
+#include "cmd_link_support.hpp"
+#include "common/wire_messages.hpp"
+
+#include <fmt/core.h>
+
+#include <climits>
+#include <iostream>
+#include <memory>
+
+namespace btsm::cli {
+namespace {
+
+using namespace btsm::link;
+
+// --- set-speed -----------------------------------------------------------------------------------
+
+struct SetSpeedArgs {
+  LinkOptions link;
+  std::string rpm;
+};
+
+// "tach" -> kSpeedFromTach, "0".."60000" -> rpm, anything else a usage error.
+uint16_t parse_speed(const std::string& text) {
+  if (text == "tach") return wire::kSpeedFromTach;
+  size_t used = 0;
+  long v = -1;
+  try {
+    v = std::stol(text, &used);
+  } catch (...) {
+  }
+  if (used != text.size() || v < 0 || v > wire::kMaxSpeedRpm)
+    throw CommandError(kExitUsage, fmt::format("speed '{}': expected 0..{} rpm or 'tach'", text, wire::kMaxSpeedRpm));
+  return static_cast<uint16_t>(v);
+}
+
+void run_set_speed(const SetSpeedArgs& a) {
+  const uint16_t value = parse_speed(a.rpm);
+  auto conn = connect(a.link);
+  conn.session->set_speed(value);
+  std::cerr << "set-speed: " << (a.rpm == "tach" ? std::string("speed from tach") : a.rpm + " rpm") << " acknowledged\n";
+}
+
+void register_set_speed(CLI::App& app) {
+  auto a = std::make_shared<SetSpeedArgs>();
+  auto* c = app.add_subcommand("set-speed", "Tell the module the spindle speed its model uses (rpm, or 'tach' to measure it)");
+  c->footer("The speed is held in the module's RAM: after a reset it measures the tach input again.\n"
+            "  btsm set-speed --port /dev/ttyACM0 6000\n  btsm set-speed --ble C8:A0:30:F1:02:03 tach");
+  add_link_options(*c, a->link);
+  c->add_option("speed", a->rpm, "rpm 0..60000, or 'tach' for the tachometer input")->required();
+  c->callback([a] { guarded([&] { run_set_speed(*a); }); });
+}
+
+// --- set-config ----------------------------------------------------------------------------------
+
+struct SetConfigArgs {
+  LinkOptions link;
+  std::string key, value;
+};
+
+// Key names accepted by set-config: the wire names ("sample_period_ms", "channel_role_3") or
+// a number.
+uint8_t parse_config_key(const std::string& text) {
+  for (int k = 0; k < 256; ++k) {
+    const char* n = wire::config_key_name(static_cast<uint8_t>(k));
+    if (n && text == n) return static_cast<uint8_t>(k);
+  }
+  try {
+    size_t used = 0;
+    const unsigned long v = std::stoul(text, &used, 0);
+    wire::ConfigRange r{};
+    if (used == text.size() && v < 256 && wire::config_key_range(static_cast<uint8_t>(v), r))
+      return static_cast<uint8_t>(v);
+  } catch (...) {
+  }
+  std::string names;
+  for (int k = 0; k < 256; ++k)
+    if (const char* n = wire::config_key_name(static_cast<uint8_t>(k))) names += std::string(names.empty() ? "" : ", ") + n;
+  throw CommandError(kExitUsage, "unknown configuration key '" + text + "' (known: " + names + ")");
+}
+
+int32_t parse_config_value(uint8_t key, const std::string& text) {
+  if (key >= wire::kChannelRoleKeyFirst && key <= wire::kChannelRoleKeyLast) {
+    for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r)
+      if (text == wire::channel_role_name(r)) return r;
+  }
+  try {
+    size_t used = 0;
+    const long long v = std::stoll(text, &used, 10);
+    if (used == text.size() && v >= INT32_MIN && v <= INT32_MAX) return static_cast<int32_t>(v);
+  } catch (...) {
+  }
+  throw CommandError(kExitUsage, fmt::format("value '{}' for {} is not an integer{}", text, wire::config_key_name(key),
+                                             key >= wire::kChannelRoleKeyFirst ? " or a role name (ambient, front_bearing, "
+                                                                                 "rear_bearing, housing, motor, coolant, "
+                                                                                 "spare, shaft, disabled)"
+                                                                               : ""));
+}
+
+void run_set_config(const SetConfigArgs& a) {
+  const uint8_t key = parse_config_key(a.key);
+  const int32_t value = parse_config_value(key, a.value);
+  wire::ConfigRange r{};
+  wire::config_key_range(key, r);
+  if (value < r.min || value > r.max)
+    throw CommandError(kExitUsage,
+                       fmt::format("{} = {} is outside [{}, {}]", wire::config_key_name(key), value, r.min, r.max));
+  auto conn = connect(a.link);
+  conn.session->set_config(key, value);
+  std::cerr << fmt::format("set-config: {} = {} acknowledged\n", wire::config_key_name(key), value);
+}
+
+// One line per key with its range and default, for the help footer.
+std::string config_keys_help() {
+  std::string keys;
+  for (int k = 0; k < 256; ++k) {
+    wire::ConfigRange r{};
+    const char* n = wire::config_key_name(static_cast<uint8_t>(k));
+    if (n && wire::config_key_range(static_cast<uint8_t>(k), r))
+      keys += fmt::format("  {:<22} [{} .. {}], default {}\n", n, r.min, r.max, r.default_value);
+  }
+  return keys;
+}
+
+void register_set_config(CLI::App& app) {
+  auto a = std::make_shared<SetConfigArgs>();
+  auto* c = app.add_subcommand("set-config", "Set one module configuration value (checked against its range first)");
+  c->footer("Keys:\n" + config_keys_help() +
+            "channel_role_N takes a role name: disabled, ambient, front_bearing, rear_bearing, housing,\n"
+            "motor, coolant, spare, shaft.\n  btsm set-config --port /dev/ttyACM0 sample_period_ms 2000");
+  add_link_options(*c, a->link);
+  c->add_option("key", a->key, "configuration key name (or number)")->required();
+  c->add_option("value", a->value, "integer value (or role name)")->required();
+  c->callback([a] { guarded([&] { run_set_config(*a); }); });
+}
+
+// --- ack-alarm -----------------------------------------------------------------------------------
+
+void run_ack_alarm(const LinkOptions& link) {
+  auto conn = connect(link);
+  conn.session->ack_alarm();
+  std::cerr << "ack-alarm: acknowledged\n";
+}
+
+void register_ack_alarm(CLI::App& app) {
+  auto link = std::make_shared<LinkOptions>();
+  auto* c = app.add_subcommand("ack-alarm", "Acknowledge a latched ALARM (it clears once the cause is gone)");
+  add_link_options(*c, *link);
+  c->callback([link] { guarded([&] { run_ack_alarm(*link); }); });
+}
+
+}  // namespace
+
+void register_link_control_commands(CLI::App& app) {
+  register_set_speed(app);
+  register_set_config(app);
+  register_ack_alarm(app);
+}
+
+}  // namespace btsm::cli

@@ -1,0 +1,92 @@
+// btsm flash-model: authenticated upload of a reduced model blob, with read-back.
+#include "cmd_link_support.hpp"
+#include "host/link/device_keys.hpp"
+#include "host/link/model_flash.hpp"
+
+#include <fmt/core.h>
+#include <unistd.h>
+
+#include <filesystem>
+#include <iostream>
+#include <memory>
+
+namespace btsm::cli {
+namespace {
+
+using namespace btsm::link;
+
+struct FlashModelArgs {
+  LinkOptions link;
+  std::string file, key_file;
+  bool json = false;
+};
+
+// The signing key: from --key-file (named <device_id>.key, for this module) or the key store.
+DeviceKey signing_key(const FlashModelArgs& a, uint32_t module_device_id) {
+  if (a.key_file.empty()) return KeyStore::from_environment().load(module_device_id);
+  const auto p = std::filesystem::absolute(a.key_file);
+  const auto stem = p.stem().string();
+  const auto id = parse_device_id(stem);
+  KeyStore ks(p.parent_path().string());
+  if (!id || ks.path_for(*id) != p.string())
+    throw CommandError(kExitUsage, "--key-file must be named <device_id>.key (8 hex digits), got " + a.key_file);
+  if (*id != module_device_id)
+    throw CommandError(kExitUsage, fmt::format("--key-file is for device {}, the module is {}", stem,
+                                               device_id_text(module_device_id)));
+  return ks.load(*id);
+}
+
+void print_flash_summary(const FlashModelArgs& a, const FlashSummary& s) {
+  std::cerr << fmt::format("flash-model: module {} now runs model crc {:08x} (seq {} -> {}), {} chunks, read-back "
+                           "verified\n",
+                           device_id_text(s.device_id), s.model_crc, s.model_seq_before, s.model_seq_after, s.chunks);
+  if (a.json)
+    print_json({{"device_id", device_id_text(s.device_id)}, {"bytes", s.blob_size}, {"chunks", s.chunks},
+                {"max_chunk_frame_bytes", s.max_chunk_frame}, {"offset_resyncs", s.offset_resyncs},
+                {"commit_confirmed_by_info", s.commit_confirmed_by_info},
+                {"model_crc", fmt::format("{:08x}", s.model_crc)}, {"model_seq", s.model_seq_after},
+                {"verified", s.verified}});
+}
+
+void run_flash_model(const FlashModelArgs& a) {
+  const auto blob = load_model_blob(a.file);
+  const std::string why = check_model_blob(blob);
+  if (!why.empty()) throw CommandError(kExitUsage, a.file + ": " + why);
+  auto conn = connect(a.link);
+  const auto info = conn.session->get_info();
+  const DeviceKey key = signing_key(a, info.device_id);
+  const bool tty = ::isatty(STDERR_FILENO);
+  FlashOptions fo;
+  fo.progress = [&](const FlashProgress& p) {
+    if (!tty) return;
+    std::cerr << fmt::format("\rflash-model: {:<7} {:>4}/{} bytes", p.phase, p.bytes_sent, p.total) << std::flush;
+  };
+  const FlashSummary s = flash_model(*conn.session, blob, key, fo);
+  if (tty) std::cerr << "\n";
+  print_flash_summary(a, s);
+}
+
+void register_flash_model(CLI::App& app) {
+  auto a = std::make_shared<FlashModelArgs>();
+  auto* c = app.add_subcommand("flash-model", "Upload a reduced model blob to the module, authenticated, with read-back");
+  c->footer(
+      "FILE is the blob written by `btsm reduce --blob model.bin`, or a JSON holding it as \"blob_hex\"\n"
+      "(or naming it with \"blob_file\"). The blob is validated first (size 464, CRC, version, poles,\n"
+      "gains). The upload: GET_INFO (device id) -> MODEL_BEGIN -> AUTH_CHALLENGE (single-use nonce) ->\n"
+      "chunks that each fit one 20-byte BLE write, each acknowledged -> MODEL_COMMIT with\n"
+      "HMAC-SHA256(device key, nonce || blob) -> MODEL_READ of the whole blob and CRC compare -> INFO\n"
+      "shows the new CRC and sequence. The key comes from the key store (`btsm keys path`) for the\n"
+      "module's device id. The module keeps its previous model unless the commit is accepted; a\n"
+      "refusal prints the module's reason (AUTH_FAILED = wrong key, BLOB_INVALID, ...).");
+  add_link_options(*c, a->link);
+  c->add_option("file", a->file, "model blob (.bin) or JSON with the blob")->required()->check(CLI::ExistingFile);
+  c->add_option("--key-file", a->key_file, "use this key file instead of the key store (must be mode 0600)");
+  c->add_flag("--json", a->json, "print the summary as JSON");
+  c->callback([a] { guarded([&] { run_flash_model(*a); }); });
+}
+
+}  // namespace
+
+void register_link_model_commands(CLI::App& app) { register_flash_model(app); }
+
+}  // namespace btsm::cli
