@@ -20,9 +20,15 @@
 //   4. joint output-error fit of every free parameter over all recordings
 // A parameter with a numeric `initial` (or FitOptions::start) is started there instead of step 1/3.
 //
-// Augmented networks (heat/residual engineer): add parameters/links/sources to a Network, pass the
-// base fit's values in FitOptions::start, list the parameters to fit in FitOptions::free_only
-// (others held), and use FitOptions::extra_heat_w for known extra heat inputs per recording.
+// Where it lives: fit.cpp (this pipeline, one named function per stage), fit_output_error (the
+// evaluator), fit_levenberg_marquardt (the solver), fit_starts (the starts), column_map.hpp
+// (which column measures which node) and fit_uncertainty (sigma and identifiability).
+//
+// Augmented networks (the residual loop's effects, known extra heat): add parameters/links/sources
+// to a Network, pass the base fit's values in FitOptions::start, list the parameters to fit in
+// FitOptions::free_only (others held), and use FitOptions::extra_heat_w for known extra heat
+// inputs per recording.
+#include "column_map.hpp"
 #include "network.hpp"
 #include "recording.hpp"
 
@@ -100,19 +106,6 @@ FitResult fit_network(const Network& net, const std::vector<Recording>& recs, co
 // initial state; the building block of validation and residual analysis.
 Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
                                      const Eigen::VectorXd& x0_c, const Eigen::MatrixXd* extra_heat_w = nullptr);
-// Channel index in `rec` of each measurement of `net`; throws naming the missing column.
-std::vector<int> measurement_columns(const Network& net, const Recording& rec);
-// Which column measures which node, from the recordings' `channel_roles` metadata (written by
-// `btsm record` as "T1=rear_bearing,...,T5=shaft"), then `columns` (--column) on top, applied to
-// `net` with remap_measurements(). A node named like a thermal role (common/wire_messages.hpp
-// is_thermal_role: the spindle4 nodes rear_bearing, housing, front_bearing, shaft) is measured by
-// the channel with that role, or by none when no channel has it -- a module recording says itself
-// where its probes are. Nodes named in `columns` are left to those. Recordings without the
-// metadata, or with roles that are firmware defaults rather than read from the module, contribute
-// nothing. Returns what the roles decided (" node=column ...", "(none)" for a dropped node), or ""
-// when they decided nothing. Throws std::invalid_argument when recordings disagree (naming the
-// node and both files) or as remap_measurements() does.
-std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns);
 // Initial state guess from the first row (unmeasured nodes = ambient + mean measured rise).
 Eigen::VectorXd first_sample_state(const Network& net, const Recording& rec);
 

@@ -1,0 +1,84 @@
+// Column mapping of the fit (see column_map.hpp).
+#include "column_map.hpp"
+
+#include "common/wire_messages.hpp"
+
+#include <map>
+#include <sstream>
+#include <stdexcept>
+
+namespace btsm::thermal {
+
+std::vector<int> measurement_columns(const Network& net, const Recording& rec) {
+  std::vector<int> cols;
+  if (net.measurements.empty()) throw std::invalid_argument("network '" + net.name + "' declares no measurements");
+  for (const auto& m : net.measurements) {
+    const int c = rec.channel_index(m.column);
+    if (c < 0) {
+      std::string have;
+      for (const auto& ch : rec.channels) have += " " + ch;
+      throw std::invalid_argument(rec.source + ": no column '" + m.column + "' (measures node '" +
+                                  net.nodes[static_cast<std::size_t>(m.node)].name + "'); columns:" + have);
+    }
+    cols.push_back(c);
+  }
+  return cols;
+}
+
+namespace {
+// node name -> the column its role names ("" = no channel has it), from the recordings'
+// channel_roles metadata; nodes in `explicit_specs` are left out. See map_measurements().
+std::map<std::string, std::string> columns_from_roles(const Network& net, const std::vector<Recording>& recs,
+                                                      const std::vector<std::string>& explicit_specs) {
+  std::map<std::string, std::string> explicit_nodes;
+  for (const auto& spec : explicit_specs) explicit_nodes[spec.substr(0, spec.find('='))] = spec;
+  std::map<std::string, std::pair<std::string, std::string>> chosen;  // node -> (column, recording)
+  for (const auto& rec : recs) {
+    const std::string meta = rec.meta_value("channel_roles");
+    if (meta.empty() || meta.find('(') != std::string::npos) continue;  // absent, or defaults
+    std::map<std::string, std::string> column_of_role;
+    std::stringstream ss(meta);
+    std::string pair;
+    while (std::getline(ss, pair, ',')) {
+      const auto eq = pair.find('=');
+      if (eq != std::string::npos) column_of_role[pair.substr(eq + 1)] = pair.substr(0, eq);
+    }
+    for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r) {
+      const std::string role = wire::channel_role_name(r);
+      if (!wire::is_thermal_role(r) || net.node_index(role) < 0 || explicit_nodes.count(role)) continue;
+      const auto it = column_of_role.find(role);
+      const std::string column = it == column_of_role.end() ? std::string() : it->second;
+      const auto prev = chosen.find(role);
+      if (prev == chosen.end()) {
+        chosen[role] = {column, rec.source};
+      } else if (prev->second.first != column) {
+        throw std::invalid_argument("channel roles: " + prev->second.second + " has node '" + role + "' on " +
+                                    (prev->second.first.empty() ? "no channel" : prev->second.first) + ", " +
+                                    rec.source + " on " + (column.empty() ? "no channel" : column) +
+                                    "; say which with --column " + role + "=COLUMN");
+      }
+    }
+  }
+  std::map<std::string, std::string> out;
+  for (const auto& [node, c] : chosen) out[node] = c.first;
+  return out;
+}
+}  // namespace
+
+std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns) {
+  const auto from_roles = columns_from_roles(net, recs, columns);
+  // Every chosen node loses its old column first, so swapped probes do not collide; --column last.
+  std::vector<std::string> specs;
+  std::string said;
+  for (const auto& [node, column] : from_roles) {
+    specs.push_back(node + "=");
+    said += " " + node + "=" + (column.empty() ? "(none)" : column);
+  }
+  for (const auto& [node, column] : from_roles)
+    if (!column.empty()) specs.push_back(node + "=" + column);
+  specs.insert(specs.end(), columns.begin(), columns.end());
+  remap_measurements(net, specs);
+  return said;
+}
+
+}  // namespace btsm::thermal

@@ -1,0 +1,26 @@
+#pragma once
+// Which recording column measures which node of a network: the columns a network's measurements
+// name, and the mapping a module recording's channel roles decide.
+#include "network.hpp"
+#include "recording.hpp"
+
+#include <string>
+#include <vector>
+
+namespace btsm::thermal {
+
+// Channel index in `rec` of each measurement of `net`; throws naming the missing column.
+std::vector<int> measurement_columns(const Network& net, const Recording& rec);
+// Which column measures which node, from the recordings' `channel_roles` metadata (written by
+// `btsm record` as "T1=rear_bearing,...,T5=shaft"), then `columns` (--column) on top, applied to
+// `net` with remap_measurements(). A node named like a thermal role (common/wire_messages.hpp
+// is_thermal_role: the spindle4 nodes rear_bearing, housing, front_bearing, shaft) is measured by
+// the channel with that role, or by none when no channel has it -- a module recording says itself
+// where its probes are. Nodes named in `columns` are left to those. Recordings without the
+// metadata, or with roles that are firmware defaults rather than read from the module, contribute
+// nothing. Returns what the roles decided (" node=column ...", "(none)" for a dropped node), or ""
+// when they decided nothing. Throws std::invalid_argument when recordings disagree (naming the
+// node and both files) or as remap_measurements() does.
+std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns);
+
+}  // namespace btsm::thermal

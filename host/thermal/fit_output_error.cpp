@@ -1,0 +1,250 @@
+// The output-error evaluator of the fit: exact ZOH simulation of every run, forward sensitivities
+// and the normal equations (see fit_output_error.hpp).
+#include "fit_output_error.hpp"
+
+#include <algorithm>
+#include <cmath>
+#include <thread>
+
+namespace btsm::thermal::fitting {
+
+Transform transform_of(const Parameter& par) {
+  Transform t;
+  t.log = par.log_scale;
+  t.zmin = t.to_z(par.min);
+  t.zmax = t.to_z(par.max);
+  return t;
+}
+
+// Which parameters a mode uses (capacitances are used by both).
+std::vector<bool> params_used(const Network& net, Mode mode) {
+  std::vector<bool> used(static_cast<std::size_t>(net.param_count()), false);
+  for (const auto& n : net.nodes) used[static_cast<std::size_t>(n.capacitance_param)] = true;
+  for (const auto& l : net.links)
+    for (const auto& t : mode == Mode::Operating ? l.operating : l.cooling) used[static_cast<std::size_t>(t.param)] = true;
+  for (const auto& s : net.sources)
+    for (const auto& t : mode == Mode::Operating ? s.operating : s.cooling) used[static_cast<std::size_t>(t.param)] = true;
+  return used;
+}
+
+OutputErrorEvaluator::OutputErrorEvaluator(OutputErrorProblem& pr) : pr_(pr) {
+  for (Mode m : {Mode::Operating, Mode::Cooling}) used_[m == Mode::Operating ? 0 : 1] = params_used(*pr.net, m);
+  for (const auto& r : pr.runs) uses_extra_ = uses_extra_ || r.extra != nullptr;
+}
+
+Evaluation OutputErrorEvaluator::evaluate(const Eigen::VectorXd& u, bool with_jacobian) {
+  apply(u);
+  build_keys(with_jacobian);
+  const int local = pr_.nf() + (pr_.estimate_x0 ? pr_.n() : 0);
+  const int nu = pr_.unknowns();
+  // Runs are independent given the parameters: spread them over the cores.
+  const std::size_t nruns = pr_.runs.size();
+  const unsigned hw = std::max(1u, std::thread::hardware_concurrency());
+  const std::size_t workers = std::min<std::size_t>({nruns, hw, 4});
+  std::vector<Evaluation> part(workers);
+  for (auto& e : part)
+    if (with_jacobian) {
+      e.H = Eigen::MatrixXd::Zero(nu, nu);
+      e.g = Eigen::VectorXd::Zero(nu);
+    }
+  // Longest runs first, round-robin, for balance.
+  std::vector<std::size_t> order(nruns);
+  for (std::size_t i = 0; i < nruns; ++i) order[i] = i;
+  std::sort(order.begin(), order.end(), [&](std::size_t a, std::size_t b) {
+    return pr_.runs[a].end - pr_.runs[a].begin > pr_.runs[b].end - pr_.runs[b].begin;
+  });
+  auto work = [&](std::size_t w) {
+    for (std::size_t i = w; i < nruns; i += workers) evaluate_run(order[i], with_jacobian, local, part[w]);
+  };
+  if (workers <= 1) {
+    work(0);
+  } else {
+    std::vector<std::thread> threads;
+    for (std::size_t w = 1; w < workers; ++w) threads.emplace_back(work, w);
+    work(0);
+    for (auto& t : threads) t.join();
+  }
+  Evaluation ev = std::move(part[0]);
+  for (std::size_t w = 1; w < workers; ++w) {
+    ev.ssr += part[w].ssr;
+    ev.count += part[w].count;
+    if (with_jacobian) {
+      ev.H += part[w].H;
+      ev.g += part[w].g;
+    }
+  }
+  ev.cost = 0.5 * ev.ssr;
+  gauge(u, with_jacobian, ev);
+  return ev;
+}
+
+void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const {
+  const int n = pr_.n(), nf = pr_.nf();
+  constexpr int kBlock = 512;
+  Eigen::MatrixXd jbuf(kBlock, local);
+  Eigen::VectorXd rbuf(kBlock);
+  Eigen::MatrixXd S(n, nf), X(n, n), Snext(n, nf), Xnext(n, n), D(n, nf);
+  Eigen::VectorXd x(n), xnext(n), dv(n * nf), extra(n);
+  {
+    const Run& run = pr_.runs[ri];
+    const Recording& rec = *run.rec;
+    Eigen::MatrixXd Hl;
+    Eigen::VectorXd gl;
+    if (with_jacobian) {
+      Hl = Eigen::MatrixXd::Zero(local, local);
+      gl = Eigen::VectorXd::Zero(local);
+    }
+    int fill = 0;
+    auto flush = [&] {
+      if (fill == 0) return;
+      Hl.selfadjointView<Eigen::Lower>().rankUpdate(jbuf.topRows(fill).transpose());
+      gl.noalias() += jbuf.topRows(fill).transpose() * rbuf.head(fill);
+      fill = 0;
+    };
+    x = pr_.x0[ri];
+    S.setZero();
+    X.setIdentity();
+    for (std::size_t k = run.begin; k <= run.end; ++k) {
+      const auto kr = static_cast<Eigen::Index>(k);
+      for (std::size_t m = 0; m < run.cols.size(); ++m) {
+        const double y = rec.temp_c(kr, run.cols[m]);
+        if (!std::isfinite(y)) continue;
+        const int node = pr_.net->measurements[m].node;
+        const double r = x[node] - y;
+        ev.ssr += r * r;
+        ++ev.count;
+        if (with_jacobian) {
+          jbuf.row(fill).head(nf) = S.row(node);
+          if (pr_.estimate_x0) jbuf.row(fill).tail(n) = X.row(node);
+          rbuf[fill] = r;
+          if (++fill == kBlock) flush();
+        }
+      }
+      if (k == run.end) break;
+      const double dt = rec.time_s[k + 1] - rec.time_s[k];
+      const double amb = rec.ambient_c[k];
+      const KeyData& kd = keys_.find(std::make_pair(rec.speed_rpm[k], dt))->second;
+      xnext.noalias() = kd.base.Phi * x;
+      xnext += kd.base.drive + kd.base.ambient_gain * amb;
+      if (run.extra) {
+        extra = run.extra->row(kr).transpose();
+        xnext.noalias() += kd.base.Gamma * extra;
+      }
+      if (with_jacobian) {
+        dv.noalias() = kd.dphi_stack * x;
+        if (run.extra) dv.noalias() += kd.dgamma_stack * extra;
+        D = Eigen::Map<const Eigen::MatrixXd>(dv.data(), n, nf);
+        D += kd.ddrive + kd.damb * amb;
+        Snext.noalias() = kd.base.Phi * S;
+        S = Snext + D;
+        if (pr_.estimate_x0) {
+          Xnext.noalias() = kd.base.Phi * X;
+          X = Xnext;
+        }
+      }
+      x = xnext;
+    }
+    if (with_jacobian) {
+      flush();
+      Hl.triangularView<Eigen::Upper>() = Hl.transpose();
+      ev.H.topLeftCorner(nf, nf) += Hl.topLeftCorner(nf, nf);
+      ev.g.head(nf) += gl.head(nf);
+      if (pr_.estimate_x0) {
+        const int off = nf + static_cast<int>(ri) * n;
+        ev.H.block(off, off, n, n) += Hl.bottomRightCorner(n, n);
+        ev.H.block(0, off, nf, n) += Hl.topRightCorner(nf, n);
+        ev.H.block(off, 0, n, nf) += Hl.bottomLeftCorner(n, nf);
+        ev.g.segment(off, n) += gl.tail(n);
+      }
+    }
+  }
+}
+
+void OutputErrorEvaluator::gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const {
+  const int nf = pr_.nf();
+  const int nu = pr_.unknowns();
+  if (std::isfinite(pr_.sum_c)) {
+    double sum = 0;
+    for (const auto& nd : pr_.net->nodes) sum += pr_.p[nd.capacitance_param];
+    const double rg = kGaugeWeight * std::log(sum / pr_.sum_c);
+    ev.cost += 0.5 * rg * rg;
+    if (with_jacobian) {
+      Eigen::VectorXd jg = Eigen::VectorXd::Zero(nu);
+      for (int j = 0; j < nf; ++j)
+        for (const auto& nd : pr_.net->nodes)
+          if (nd.capacitance_param == pr_.free[static_cast<std::size_t>(j)])
+            jg[j] += kGaugeWeight * pr_.tf[static_cast<std::size_t>(j)].dp_dz(u[j]) / sum;
+      ev.H += jg * jg.transpose();
+      ev.g += jg * rg;
+    }
+  }
+}
+
+void OutputErrorEvaluator::apply(const Eigen::VectorXd& u) {
+  for (int j = 0; j < pr_.nf(); ++j) pr_.p[pr_.free[static_cast<std::size_t>(j)]] = pr_.tf[static_cast<std::size_t>(j)].to_p(u[j]);
+  if (pr_.estimate_x0)
+    for (std::size_t r = 0; r < pr_.runs.size(); ++r)
+      pr_.x0[r] = u.segment(pr_.nf() + static_cast<int>(r) * pr_.n(), pr_.n());
+}
+
+void OutputErrorEvaluator::build_keys(bool with_jacobian) {
+  keys_.clear();
+  const int n = pr_.n(), nf = pr_.nf();
+  std::map<double, ModalForm> modal;
+  for (const auto& run : pr_.runs) {
+    const Recording& rec = *run.rec;
+    for (std::size_t k = run.begin; k < run.end; ++k) {
+      const auto key = std::make_pair(rec.speed_rpm[k], rec.time_s[k + 1] - rec.time_s[k]);
+      if (keys_.count(key)) continue;
+      auto mit = modal.find(key.first);
+      if (mit == modal.end()) mit = modal.emplace(key.first, modal_form(assemble(*pr_.net, pr_.p, key.first))).first;
+      KeyData kd;
+      kd.base = step_matrices(mit->second, key.second);
+      if (with_jacobian) {
+        kd.dphi_stack = Eigen::MatrixXd::Zero(n * nf, n);
+        if (uses_extra_) kd.dgamma_stack = Eigen::MatrixXd::Zero(n * nf, n);
+        kd.ddrive = Eigen::MatrixXd::Zero(n, nf);
+        kd.damb = Eigen::MatrixXd::Zero(n, nf);
+        const auto& used = used_[pr_.net->mode_at(key.first) == Mode::Operating ? 0 : 1];
+        for (int j = 0; j < nf; ++j) {
+          const int pi = pr_.free[static_cast<std::size_t>(j)];
+          if (!used[static_cast<std::size_t>(pi)]) continue;
+          const Transform& tf = pr_.tf[static_cast<std::size_t>(j)];
+          const double p0 = pr_.p[pi];
+          const double z0 = tf.to_z(p0);
+          const double h = tf.log ? 1e-5 : 1e-5 * std::max(1.0, std::abs(p0));
+          Eigen::VectorXd pp = pr_.p, pm = pr_.p;
+          pp[pi] = tf.to_p(z0 + h);
+          pm[pi] = tf.to_p(z0 - h);
+          const StepMatrices sp = step_matrices(modal_form(assemble(*pr_.net, pp, key.first)), key.second);
+          const StepMatrices sm = step_matrices(modal_form(assemble(*pr_.net, pm, key.first)), key.second);
+          const double inv = 1.0 / (2 * h);
+          kd.dphi_stack.middleRows(j * n, n) = (sp.Phi - sm.Phi) * inv;
+          if (uses_extra_) kd.dgamma_stack.middleRows(j * n, n) = (sp.Gamma - sm.Gamma) * inv;
+          kd.ddrive.col(j) = (sp.drive - sm.drive) * inv;
+          kd.damb.col(j) = (sp.ambient_gain - sm.ambient_gain) * inv;
+        }
+        // dv = dphi_stack * x is laid out block-wise (j*n + i); the evaluator maps it as an
+        // n x nf column-major matrix, which is exactly that layout.
+      }
+      keys_.emplace(key, std::move(kd));
+    }
+  }
+}
+
+Eigen::VectorXd pack(const OutputErrorProblem& pr) {
+  Eigen::VectorXd u(pr.unknowns());
+  for (int j = 0; j < pr.nf(); ++j) u[j] = pr.tf[static_cast<std::size_t>(j)].to_z(pr.p[pr.free[static_cast<std::size_t>(j)]]);
+  if (pr.estimate_x0)
+    for (std::size_t r = 0; r < pr.runs.size(); ++r) u.segment(pr.nf() + static_cast<int>(r) * pr.n(), pr.n()) = pr.x0[r];
+  return u;
+}
+
+void clamp_to_bounds(const OutputErrorProblem& pr, Eigen::VectorXd& u) {
+  for (int j = 0; j < pr.nf(); ++j) {
+    const Transform& t = pr.tf[static_cast<std::size_t>(j)];
+    u[j] = std::clamp(u[j], t.zmin, t.zmax);
+  }
+}
+
+}  // namespace btsm::thermal::fitting

@@ -1,0 +1,106 @@
+#pragma once
+// The output-error problem of the fit and its evaluator.
+//
+// Unknowns u = the free parameters, transformed (log or linear, see Transform), then optionally one
+// initial state per run. Residual = simulated - measured temperature for every measured cell of
+// every run, plus one stiff residual on log(sum C) when the capacitance gauge is in force. The
+// evaluator returns the sum of squares and, on request, J^T J and J^T r, with J from forward
+// sensitivity propagation: dx_k/dp recursed with the step matrices, whose parameter derivatives are
+// central differences per (speed, dt) key. Runs are independent given the parameters and are
+// spread over the cores.
+#include "network.hpp"
+#include "recording.hpp"
+#include "fit_support.hpp"
+#include "simulator.hpp"
+
+#include <Eigen/Core>
+
+#include <cmath>
+#include <cstddef>
+#include <map>
+#include <utility>
+#include <vector>
+
+namespace btsm::thermal::fitting {
+
+// A contiguous row range [begin, end] (inclusive) of a recording used as one experiment.
+struct Run {
+  const Recording* rec = nullptr;
+  std::size_t begin = 0, end = 0;
+  std::vector<int> cols;               // recording channel per measurement
+  const Eigen::MatrixXd* extra = nullptr;
+  int recording_index = -1;            // index into the caller's recordings (-1 = sub-range)
+};
+
+// How a parameter is fitted: z = log(p) (log_scale) or z = p, within the bounds [zmin, zmax].
+struct Transform {
+  bool log = true;
+  double zmin = 0, zmax = 0;
+  double to_p(double z) const { return log ? std::exp(z) : z; }
+  double dp_dz(double z) const { return log ? std::exp(z) : 1.0; }
+  double to_z(double p) const { return log ? std::log(p) : p; }
+};
+Transform transform_of(const Parameter& par);
+
+// Which parameters a mode uses (capacitances are used by both).
+std::vector<bool> params_used(const Network& net, Mode mode);
+
+// Output-error problem: free parameters (transformed) + optional per-run initial states.
+struct OutputErrorProblem {
+  const Network* net = nullptr;
+  std::vector<Run> runs;
+  std::vector<int> free;               // parameter indices
+  std::vector<Transform> tf;
+  Eigen::VectorXd p;                   // all parameter values
+  bool estimate_x0 = true;
+  std::vector<Eigen::VectorXd> x0;
+  double sum_c = kNaN;                 // J/K, capacitance gauge; NaN = none in this problem
+  int n() const { return net->node_count(); }
+  int nf() const { return static_cast<int>(free.size()); }
+  int unknowns() const { return nf() + (estimate_x0 ? static_cast<int>(runs.size()) * n() : 0); }
+};
+
+struct Evaluation {
+  double ssr = 0;        // data residuals only
+  double cost = 0;       // 0.5 (ssr + gauge^2)
+  std::size_t count = 0;
+  Eigen::MatrixXd H;     // J^T J
+  Eigen::VectorXd g;     // J^T r
+};
+
+class OutputErrorEvaluator {
+ public:
+  explicit OutputErrorEvaluator(OutputErrorProblem& pr);
+
+  // Sets parameters from u and evaluates; with_jacobian fills H and g.
+  Evaluation evaluate(const Eigen::VectorXd& u, bool with_jacobian);
+  // Writes u into the problem's parameter values and initial states.
+  void apply(const Eigen::VectorXd& u);
+
+  static constexpr double kGaugeWeight = 1e4;
+
+ private:
+  struct KeyData {
+    StepMatrices base;
+    Eigen::MatrixXd dphi_stack;   // (n*nf) x n, block j = dPhi/dz_j
+    Eigen::MatrixXd dgamma_stack; // (n*nf) x n, only when extra heat is used
+    Eigen::MatrixXd ddrive;       // n x nf
+    Eigen::MatrixXd damb;         // n x nf
+  };
+  void evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const;
+  // Scale gauge as a stiff residual on log(sum C).
+  void gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const;
+  void build_keys(bool with_jacobian);
+
+  OutputErrorProblem& pr_;
+  std::vector<bool> used_[2];
+  bool uses_extra_ = false;
+  std::map<std::pair<double, double>, KeyData> keys_;
+};
+
+// The unknowns u of the problem's current parameter values and initial states, and u clamped to
+// the parameter bounds.
+Eigen::VectorXd pack(const OutputErrorProblem& pr);
+void clamp_to_bounds(const OutputErrorProblem& pr, Eigen::VectorXd& u);
+
+}  // namespace btsm::thermal::fitting
