@@ -187,7 +187,7 @@ void register_sim_commands(CLI::App& app) {
   cmd->add_option("--truth-period", a->truth_period_s, "seconds between truth rows")->capture_default_str();
   cmd->add_option("--fault", a->faults,
                   "fault KIND[:ARG]@START[-END], repeatable: open:ch2@3600, openchain:ch3@1h, short:ch1@100, "
-                  "noadc@0, noref@50, bearing:25W@2h");
+                  "noadc@0, noref@50, bearing:25W@2h (rear bearing), bearing:front:25W@2h");
   cmd->add_option("--effect", a->effects,
                   "hidden effect (not announced to the host), repeatable: bearing-tc:K (rear-bearing heat x (1 + K theta1)), "
                   "run-in:W/TAU (W per 1000 rpm of speed increase at both bearings, decaying with TAU)");

@@ -50,6 +50,14 @@ FaultSpec parse_fault(const std::string& spec) {
   } else if (kind == "bearing") {
     f.kind = FaultKind::BearingHeat;
     std::string w = arg;
+    const auto place = w.find(':');
+    if (place != std::string::npos) {
+      const std::string where = w.substr(0, place);
+      if (where == "front") f.place = BearingPlace::Front;
+      else if (where != "rear")
+        throw std::invalid_argument("fault '" + spec + "': bearing place must be rear or front, got '" + where + "'");
+      w = w.substr(place + 1);
+    }
     if (!w.empty() && (w.back() == 'W' || w.back() == 'w')) w.pop_back();
     f.heat_w = number(w, "fault '" + spec + "' heat (W)");
     if (f.heat_w < 0.0 || f.heat_w > 1000.0)
@@ -76,7 +84,9 @@ std::string to_string(const FaultSpec& f) {
     case FaultKind::ShortedProbe: os << "short:ch" << f.channel; break;
     case FaultKind::MissingAdc: os << "noadc"; break;
     case FaultKind::LostReference: os << "noref"; break;
-    case FaultKind::BearingHeat: os << "bearing:" << f.heat_w << "W"; break;
+    case FaultKind::BearingHeat:
+      os << "bearing:" << (f.place == BearingPlace::Front ? "front:" : "") << f.heat_w << "W";
+      break;
   }
   os << '@' << f.start_s;
   if (std::isfinite(f.end_s)) os << '-' << f.end_s;

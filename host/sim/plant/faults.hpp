@@ -11,6 +11,7 @@
 //   noadc@0              AD7794 missing (no answer on SPI, MISO stays high)
 //   noref@50             reference lost (REFIN open: NOXREF, codes clamp)
 //   bearing:25W@7200     bearing fault: 25 W extra heat at the rear bearing (node 1) from 2 h
+//   bearing:front:25W@2h the same at the front bearing (node 3); bearing:rear:25W@2h = bearing:25W@2h
 // Hidden effects (physics the paper's model lacks; never announced to the host):
 //   bearing-tc:K         rear-bearing heat grows with its own rise: Q1 -> Q1 (1 + K theta1),
 //                        K in 1/K (e.g. 0.01 = +1 % per kelvin)
@@ -26,12 +27,16 @@ namespace btsm::sim {
 
 enum class FaultKind { OpenProbe, OpenChain, ShortedProbe, MissingAdc, LostReference, BearingHeat };
 
+// Where a BearingHeat fault heats: the bearing measured by ch1 (rear) or ch3 (front).
+enum class BearingPlace { Rear, Front };
+
 struct FaultSpec {
   FaultKind kind = FaultKind::OpenProbe;
   int channel = 0;             // 1..5 for probe faults, 0 otherwise
   double start_s = 0.0;        // s, fault active from this simulated time
   double end_s = std::numeric_limits<double>::infinity();  // s, active until (exclusive)
   double heat_w = 0.0;         // W, BearingHeat only
+  BearingPlace place = BearingPlace::Rear;  // BearingHeat only
   bool active_at(double t_s) const { return t_s >= start_s && t_s < end_s; }
 };
 

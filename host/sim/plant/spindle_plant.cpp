@@ -56,7 +56,8 @@ void SpindlePlant::compute_extra_heat(double rpm) {
   extra_w_.setZero();
   const double t = t_s_;
   for (const auto& f : opts_.faults)
-    if (f.kind == FaultKind::BearingHeat && f.active_at(t)) extra_w_[node_[0]] += f.heat_w;
+    if (f.kind == FaultKind::BearingHeat && f.active_at(t))
+      extra_w_[node_[f.place == BearingPlace::Front ? 2 : 0]] += f.heat_w;
   const HiddenEffects& fx = opts_.effects;
   if (fx.bearing_temp_coeff_per_k != 0.0) {
     const double theta1 = sim_->node_temp_c()[node_[0]] - ambient_c();

@@ -78,7 +78,17 @@ TEST(Faults, ParseEveryKindAndRejectNonsense) {
   EXPECT_EQ(f.kind, FaultKind::BearingHeat);
   EXPECT_EQ(f.heat_w, 25);
   EXPECT_EQ(f.start_s, 7200);
-  for (const char* bad : {"open:ch6@1", "open@1", "melt:ch1@1", "noadc:ch1@1", "bearing:xW@1", "open:ch1", "short:ch1@20-10"})
+  EXPECT_EQ(f.place, BearingPlace::Rear);
+  f = parse_fault("bearing:front:10W@30m");
+  EXPECT_EQ(f.kind, FaultKind::BearingHeat);
+  EXPECT_EQ(f.place, BearingPlace::Front);
+  EXPECT_EQ(f.heat_w, 10);
+  EXPECT_EQ(f.start_s, 1800);
+  EXPECT_EQ(to_string(f), "bearing:front:10W@1800");
+  EXPECT_EQ(parse_fault("bearing:rear:10W@0").place, BearingPlace::Rear);
+  EXPECT_EQ(to_string(parse_fault("bearing:rear:10W@0")), "bearing:10W@0");
+  for (const char* bad : {"open:ch6@1", "open@1", "melt:ch1@1", "noadc:ch1@1", "bearing:xW@1", "open:ch1", "short:ch1@20-10",
+                          "bearing:middle:5W@1", "bearing:front:@1", "bearing:front:-5W@1"})
     EXPECT_THROW(parse_fault(bad), std::invalid_argument) << bad;
   HiddenEffects fx;
   parse_effect("bearing-tc:0.01", fx);
@@ -119,6 +129,22 @@ TEST(SpindlePlant, BearingFaultHeatsTheRearBearingMost) {
   EXPECT_GT(d1, 1.0);
   EXPECT_GT(d1, d3);
   EXPECT_DOUBLE_EQ(faulty.extra_heat_w()[0], 25.0);
+}
+
+TEST(SpindlePlant, FrontBearingFaultHeatsTheFrontBearingMost) {
+  SpindlePlant base(warm(3)), faulty([] {
+    auto o = warm(3);
+    o.faults.push_back(parse_fault("bearing:front:25W@1h"));
+    return o;
+  }());
+  base.advance_to(3 * 3600);
+  faulty.advance_to(3 * 3600);
+  const double d1 = faulty.probe_temp_c(1) - base.probe_temp_c(1);
+  const double d3 = faulty.probe_temp_c(3) - base.probe_temp_c(3);
+  EXPECT_GT(d3, 1.0);
+  EXPECT_GT(d3, d1);
+  EXPECT_DOUBLE_EQ(faulty.extra_heat_w()[2], 25.0);
+  EXPECT_DOUBLE_EQ(faulty.extra_heat_w()[0], 0.0);
 }
 
 TEST(SpindlePlant, HiddenEffectsAddHeatTheModelDoesNotHave) {
