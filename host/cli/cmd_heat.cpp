@@ -5,7 +5,7 @@
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
-#include "host/report/plot.hpp"
+#include "host/report/thermal_figures.hpp"
 
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
@@ -79,45 +79,8 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
     for (const auto& s : r.scan) f << fmt::format("{:.6g},{:.8g},{:.8g},{:.6g},{:.8g}\n", s.alpha, s.rss_k2, s.seminorm_w2, s.dof, s.gcv);
   }
   namespace rp = btsm::report;
-  std::vector<rp::Plot> panels;
-  rp::Plot src{"Estimated heat sources (" + a.method + ", alpha by " + r.rule + fmt::format(" = {:.3g})", r.alpha), "time [h]", "heat [W]", {}, false};
-  for (int j = 0; j < m; ++j) {
-    rp::Series s{net.nodes[p.source_nodes[j]].name, {}, {}, rp::Series::Style::Step};
-    for (int i = 0; i < r.heat_w.rows(); ++i) {
-      s.x.push_back(r.piece_start_s[i] / 3600.0);
-      s.y.push_back(r.heat_w(i, j));
-    }
-    src.series.push_back(std::move(s));
-  }
-  panels.push_back(src);
-  rp::Plot temps{"Measured (points) and fitted (lines) temperatures", "time [h]", "temperature [degC]", {}, false};
-  rp::Plot res{"Residual measured - fitted", "time [h]", "residual [K]", {}, false};
-  for (int c = 0; c < p.measured.cols(); ++c) {
-    rp::Series meas{cols[c] + " measured", {}, {}, rp::Series::Style::Points};
-    rp::Series fit{cols[c] + " fitted", {}, {}, rp::Series::Style::Line};
-    rp::Series e{cols[c], {}, {}, rp::Series::Style::Line};
-    const Eigen::VectorXd fitted = r.fitted_c * p.measure_map.row(c).transpose();
-    const int stride = std::max<int>(1, static_cast<int>(rec.rows() / 4000));
-    for (size_t k = 0; k < rec.rows(); k += stride) {
-      const double t = rec.time_s[k] / 3600.0;
-      meas.x.push_back(t); meas.y.push_back(p.measured(k, c));
-      fit.x.push_back(t); fit.y.push_back(fitted(k));
-      e.x.push_back(t); e.y.push_back(p.measured(k, c) - fitted(k));
-    }
-    temps.series.push_back(std::move(meas));
-    temps.series.push_back(std::move(fit));
-    res.series.push_back(std::move(e));
-  }
-  panels.push_back(temps);
-  panels.push_back(res);
-  if (!r.scan.empty()) {
-    rp::Plot scan{"Alpha scan: GCV function (log10 alpha on x)", "log10 alpha [K^2/W^2]", "GCV [K^2]", {}, true};
-    rp::Series g{"GCV", {}, {}, rp::Series::Style::Line};
-    for (const auto& s : r.scan) { g.x.push_back(std::log10(s.alpha)); g.y.push_back(s.gcv); }
-    scan.series.push_back(std::move(g));
-    panels.push_back(scan);
-  }
-  rp::save_panels(panels, a.out_dir + "/heat_sources");
+  rp::save_figure(rp::heat_figure(net, rec, p, r, cols, a.method), a.out_dir + "/heat_sources",
+                  rp::network_figure_options(net));
 }
 
 void run_heat(const HeatArgs& a) {

@@ -6,7 +6,7 @@
 #include "host/thermal/model_file.hpp"
 #include "host/thermal/reduce.hpp"
 #include "host/thermal/validate.hpp"
-#include "host/report/plot.hpp"
+#include "host/report/thermal_figures.hpp"
 
 #include <fmt/core.h>
 
@@ -103,33 +103,10 @@ struct ValidateArgs {
 
 void plot_validation(const Network& net, const Recording& rec, const RecordingValidation& v, const std::string& dir) {
   namespace rp = btsm::report;
-  const auto cols = measurement_columns(net, rec);
-  std::vector<double> t_h(rec.rows());
-  for (std::size_t k = 0; k < rec.rows(); ++k) t_h[k] = rec.time_s[k] / 3600.0;
-  rp::Plot temps{"Measured vs predicted: " + std::filesystem::path(rec.source).filename().string(), "time (h)", "temperature (degC)", {}, false};
-  rp::Plot resid{"Residual (measured - predicted)", "time (h)", "K", {}, false};
-  for (std::size_t m = 0; m < cols.size(); ++m) {
-    const int node = net.measurements[m].node;
-    rp::Series meas{net.measurements[m].column + " measured", {}, {}, rp::Series::Style::Points};
-    rp::Series pred{net.measurements[m].column + " predicted", t_h, {}, rp::Series::Style::Line};
-    rp::Series res{net.measurements[m].column, {}, {}, rp::Series::Style::Points};
-    for (std::size_t k = 0; k < rec.rows(); ++k) {
-      const double y = rec.temp_c(static_cast<Eigen::Index>(k), cols[m]);
-      const double p = v.predicted_c(static_cast<Eigen::Index>(k), node);
-      pred.y.push_back(p);
-      if (!std::isfinite(y)) continue;
-      meas.x.push_back(t_h[k]);
-      meas.y.push_back(y);
-      res.x.push_back(t_h[k]);
-      res.y.push_back(y - p);
-    }
-    temps.series.push_back(std::move(meas));
-    temps.series.push_back(std::move(pred));
-    resid.series.push_back(std::move(res));
-  }
   std::filesystem::create_directories(dir);
   const std::string stem = (std::filesystem::path(dir) / ("validate_" + std::filesystem::path(rec.source).stem().string())).string();
-  rp::save_panels({temps, resid}, stem);
+  rp::save_figure(rp::validation_figure(net, rec, v, std::filesystem::path(rec.source).filename().string()), stem,
+                  rp::network_figure_options(net));
   std::cerr << "validate: wrote " << stem << ".png/.svg\n";
 }
 

@@ -1,7 +1,8 @@
 #include "host/demo/demo_analysis.hpp"
 
 #include "common/reduced_model.hpp"
-#include "host/report/plot.hpp"
+#include "host/report/plot_style.hpp"
+#include "host/report/thermal_figures.hpp"
 #include "host/residual/residual_loop.hpp"
 #include "host/residual/residual_report.hpp"
 #include "host/thermal/fit.hpp"
@@ -84,24 +85,7 @@ std::string fmt_g(double v, int digits = 4) { return fmt::format("{:.{}g}", v, d
 
 void plot_validation(const thermal::Network& net, const thermal::Recording& rec, const thermal::RecordingValidation& v,
                      const std::string& stem, const std::string& title) {
-  std::vector<double> t_h(rec.rows());
-  for (size_t i = 0; i < rec.rows(); ++i) t_h[i] = rec.time_s[i] / 3600;
-  report::Plot temps{title + ": measured vs predicted", "time (h)", "°C", {}, false};
-  report::Plot resid{title + ": residual (measured − predicted)", "time (h)", "K", {}, false};
-  for (const auto& m : net.measurements) {
-    const int col = rec.channel_index(m.column);
-    if (col < 0) continue;
-    std::vector<double> meas(rec.rows()), pred(rec.rows()), res(rec.rows());
-    for (size_t i = 0; i < rec.rows(); ++i) {
-      meas[i] = rec.temp_c(i, col);
-      pred[i] = v.predicted_c(i, m.node);
-      res[i] = meas[i] - pred[i];
-    }
-    temps.series.push_back({m.column + " measured", t_h, meas, report::Series::Style::Points});
-    temps.series.push_back({m.column + " model", t_h, pred});
-    resid.series.push_back({m.column, t_h, res});
-  }
-  report::save_panels({temps, resid}, stem);
+  report::save_figure(report::validation_figure(net, rec, v, title), stem, report::network_figure_options(net));
 }
 
 }  // namespace
@@ -231,7 +215,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
     b.write(reinterpret_cast<const char*>(out.blob.data()), static_cast<std::streamsize>(out.blob.size()));
   }
   std::vector<std::vector<std::string>> rrow;
-  report::Plot hsv{"Hankel singular values per speed", "state index", "K/W", {}, true};
+  report::Plot hsv{"Hankel singular values per speed", "state index", "Hankel singular value (K/W)", {}, true};
   for (const auto& s : red.speeds) {
     std::vector<double> idx, v;
     for (int i = 0; i < s.hsv.size(); ++i) idx.push_back(i + 1), v.push_back(s.hsv[i]);
@@ -252,7 +236,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
     reset(st);
     const double dt = in.sample_period_s;
     const std::vector<std::pair<double, double>> prof = {{3 * 3600, 6000}, {2 * 3600, 3000}, {2 * 3600, 8000}, {3 * 3600, 0}};
-    std::vector<double> t_h, f1, r1, f3, r3;
+    std::vector<double> t_h, f1, r1, f3, r3, rpm_trace;
     double t = 0;
     for (const auto& [dur, rpm] : prof)
       for (double s = 0; s < dur; s += dt, t += dt) {
@@ -263,12 +247,16 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
         f3.push_back(full.node_temp_c()[2]);
         r1.push_back(pred[0] / 1000.0);
         r3.push_back(pred[2] / 1000.0);
+        rpm_trace.push_back(rpm);
         full.step(dt, rpm, amb);
       }
-    report::save_plot(report::Plot{"Firmware model (fixed point) vs the full model", "time (h)", "°C",
-                                   {{"T1 full model", t_h, f1}, {"T1 firmware model", t_h, r1},
-                                    {"T3 full model", t_h, f3}, {"T3 firmware model", t_h, r3}}, false},
-                      (dir / "reduced_vs_full").string());
+    report::Plot temps{"Firmware model (fixed point) vs the full model", report::kTimeAxis, report::kTemperatureAxis,
+                       {report::model("rear_bearing", t_h, f1, "full model"),
+                        report::alternative("rear_bearing", t_h, r1, "firmware model"),
+                        report::model("front_bearing", t_h, f3, "full model"),
+                        report::alternative("front_bearing", t_h, r3, "firmware model")}};
+    report::save_figure({temps, report::speed_panel(t_h, rpm_trace)}, (dir / "reduced_vs_full").string(),
+                        report::network_figure_options(final_net));
   }
   page.heading("4. Reduction to the module's speed-scheduled first-order model");
   page.paragraph(fmt::format("Model reduced: {}. DC-matched (singular perturbation) first-order models at each speed; the "

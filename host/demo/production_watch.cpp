@@ -2,7 +2,7 @@
 
 #include "common/wire_messages.hpp"
 #include "host/link/device_keys.hpp"
-#include "host/report/plot.hpp"
+#include "host/report/plot_style.hpp"
 
 #include <fmt/core.h>
 
@@ -78,17 +78,18 @@ ProductionResult watch_production(link::Session& session, const link::ModuleIden
   if (r.false_alarms > 0) r.failures.insert(r.failures.begin(), fmt::format("{} false ALARM samples before the fault", r.false_alarms));
   if (r.fault_to_alarm_s < 0) r.failures.push_back("the module never raised ALARM after the bearing fault");
 
-  report::Series m1{"T1 rear bearing measured", t_h, meas1}, p1{"T1 module prediction", t_h, pred1};
-  report::Series m3{"T3 front bearing measured", t_h, meas3}, p3{"T3 module prediction", t_h, pred3};
-  report::Series st{"overall state", t_h, state, report::Series::Style::Step};
-  report::Series sp{"speed", t_h, speed, report::Series::Style::Step};
   const double fault_h = (o.fault_s - o.start_s) / 3600;
-  report::Series fault_line{"fault starts", {fault_h, fault_h}, {0, 3}};
   const std::string stem = (fs::path(o.out_dir) / "alarm_timeline").string();
-  report::save_panels({report::Plot{"Production: measured vs the module's own prediction", "time (h)", "°C", {m1, p1, m3, p3}},
-                       report::Plot{"Module diagnosis (0 NORMAL, 1 WARN, 2 ALARM, 3 SENSOR_FAULT)", "time (h)", "state", {st, fault_line}},
-                       report::Plot{"Spindle speed", "time (h)", "rpm", {sp}}},
-                      stem);
+  report::Plot temps{"Production: measured vs the module's own prediction", report::kTimeAxis,
+                     report::kTemperatureAxis,
+                     {report::measured("rear_bearing", t_h, meas1), report::model("rear_bearing", t_h, pred1, "module prediction"),
+                      report::measured("front_bearing", t_h, meas3),
+                      report::model("front_bearing", t_h, pred3, "module prediction")}};
+  report::Plot diag{"Module diagnosis (0 NORMAL, 1 WARN, 2 ALARM, 3 SENSOR_FAULT)", report::kTimeAxis, "overall state",
+                    {report::Series{"", t_h, state, report::Series::Style::Step, "state"}}};
+  diag.height_weight = 0.7;
+  for (auto* p : {&temps, &diag}) p->markers.push_back({fault_h, "fault starts"});
+  report::save_figure({temps, diag, report::speed_panel(t_h, speed)}, stem);
   page.heading("5. Production: normal running, then a bearing fault");
   page.paragraph(fmt::format("Module {} with its flashed model. A {:.0f} W extra heat at the rear bearing starts {:.1f} h "
                              "into production; the module itself decides its diagnosis.",

@@ -1,5 +1,6 @@
 #include "host/report/axis_ticks.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <cstdio>
 
@@ -47,7 +48,22 @@ AxisTicks linear_ticks(double lo, double hi, int target_count) {
   return t;
 }
 
-AxisTicks log_ticks(double lo, double hi) {
+AxisTicks linear_ticks_within(double lo, double hi, int target_count) {
+  AxisTicks t = linear_ticks(lo, hi, target_count);
+  if (!std::isfinite(lo) || !std::isfinite(hi) || !(hi > lo)) return t;  // degenerate: keep the padded range
+  const double step = t.values.size() > 1 ? t.values[1] - t.values[0] : hi - lo;
+  AxisTicks in;
+  in.lo = lo;
+  in.hi = hi;
+  for (size_t i = 0; i < t.values.size(); ++i)
+    if (t.values[i] >= lo - step * 1e-9 && t.values[i] <= hi + step * 1e-9) {
+      in.values.push_back(t.values[i]);
+      in.labels.push_back(t.labels[i]);
+    }
+  return in;
+}
+
+AxisTicks log_ticks(double lo, double hi, int max_labels) {
   AxisTicks t;
   if (!(lo > 0) || !std::isfinite(lo)) lo = 1e-3;
   if (!(hi > lo) || !std::isfinite(hi)) hi = lo * 10;
@@ -55,11 +71,13 @@ AxisTicks log_ticks(double lo, double hi) {
   const int e1 = static_cast<int>(std::ceil(std::log10(hi)));
   t.lo = std::pow(10.0, e0);
   t.hi = std::pow(10.0, std::max(e1, e0 + 1));
-  for (int e = e0; e <= std::max(e1, e0 + 1); ++e) {
+  const int last = std::max(e1, e0 + 1);
+  const int every = std::max(1, (last - e0 + 1 + max_labels - 1) / std::max(1, max_labels));
+  for (int e = e0; e <= last; ++e) {
     t.values.push_back(std::pow(10.0, e));
     char buf[16];
     std::snprintf(buf, sizeof buf, "1e%d", e);
-    t.labels.push_back(buf);
+    t.labels.push_back((e - e0) % every == 0 ? buf : "");
   }
   return t;
 }

@@ -13,7 +13,11 @@ struct AxisTicks {
 
 // data_lo/data_hi may be equal or non-finite; a sensible range is produced anyway.
 AxisTicks linear_ticks(double data_lo, double data_hi, int target_count = 6);
-// Decades covering [data_lo, data_hi] (both > 0).
-AxisTicks log_ticks(double data_lo, double data_hi);
+// The axis runs exactly over [data_lo, data_hi] (a time axis ends where the data end); ticks at
+// the nice steps inside it.
+AxisTicks linear_ticks_within(double data_lo, double data_hi, int target_count = 8);
+// Decades covering [data_lo, data_hi] (both > 0); with more than max_labels decades only every
+// k-th carries a label (the others keep their grid line, label "").
+AxisTicks log_ticks(double data_lo, double data_hi, int max_labels = 8);
 
 }  // namespace btsm::report

@@ -1,7 +1,8 @@
 // Residual loop report (see residual_report.hpp).
 #include "host/residual/residual_report.hpp"
 
-#include "host/report/plot.hpp"
+#include "host/report/plot_style.hpp"
+#include "host/report/thermal_figures.hpp"
 
 #include <fmt/core.h>
 
@@ -140,7 +141,15 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
   const thermal::Recording& rec = check[0];
   const std::string rec_name = std::filesystem::path(rec.source).filename().string();
   const int nc = static_cast<int>(r.columns.size());
-  const int stride = std::max<int>(1, static_cast<int>(rec.rows() / 3000));
+  const std::vector<double> t_h = rp::hours(rec.time_s);
+  rp::FigureOptions style;
+  for (const auto& n : r.base_net.nodes) style.key_order.push_back(n.name);  // colours as in every figure of this network
+  auto node_of = [&](int c) { return c < static_cast<int>(r.diagnostics.size()) ? r.diagnostics[c].node : r.columns[c]; };
+  auto column = [&](const Eigen::MatrixXd& m, int c) {
+    std::vector<double> v(rec.rows());
+    for (std::size_t k = 0; k < rec.rows(); ++k) v[k] = m(static_cast<Eigen::Index>(k), c);
+    return v;
+  };
   // the (up to) four columns with the largest residual before
   std::vector<std::pair<double, int>> order;
   for (int c = 0; c < nc; ++c) {
@@ -154,61 +163,42 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
   std::vector<rp::Plot> model_panels;
   for (std::size_t i = 0; i < order.size() && i < 4; ++i) {
     const int c = order[i].second;
-    rp::Plot p{fmt::format("{} ({}): measured, base model{} — {}", r.columns[c], r.diagnostics[c].node,
-                           r.chosen >= 0 ? ", with " + r.label : std::string(), rec_name),
-               "time [h]", "temperature [degC]", {}, false};
-    rp::Series m{"measured", {}, {}, rp::Series::Style::Points}, b{"base model", {}, {}, rp::Series::Style::Line},
-        a{"with " + r.label, {}, {}, rp::Series::Style::Line};
-    for (std::size_t k = 0; k < rec.rows(); k += stride) {
-      const double t = rec.time_s[k] / 3600.0;
-      const double y = std::isfinite(r.check_resid_before[0](k, c)) ? r.check_model_before[0](k, c) + r.check_resid_before[0](k, c) : NAN;
-      m.x.push_back(t); m.y.push_back(y);
-      b.x.push_back(t); b.y.push_back(r.check_model_before[0](k, c));
-      a.x.push_back(t); a.y.push_back(r.check_model_after[0](k, c));
-    }
-    p.series = {m, b};
-    if (r.chosen >= 0) p.series.push_back(a);
+    const std::string node = node_of(c);
+    rp::Plot p{fmt::format("{} ({}) — check recording {}", rp::display_name(node), r.columns[c], rec_name),
+               rp::kTimeAxis, rp::kTemperatureAxis, {}};
+    std::vector<double> meas = column(r.check_model_before[0], c);
+    for (std::size_t k = 0; k < rec.rows(); ++k) meas[k] += r.check_resid_before[0](static_cast<Eigen::Index>(k), c);
+    p.series.push_back(rp::measured(node, t_h, meas));
+    p.series.push_back(rp::model(node, t_h, column(r.check_model_before[0], c), "base model"));
+    if (r.chosen >= 0) p.series.push_back(rp::alternative(node, t_h, column(r.check_model_after[0], c), "with " + r.label));
     model_panels.push_back(p);
   }
-  rp::save_panels(model_panels, dir + "/residual_model");
+  model_panels.push_back(rp::recording_speed_panel(rec));
+  rp::save_figure(model_panels, dir + "/residual_model", style);
   std::vector<rp::Plot> res_panels;
   auto residual_plot = [&](const std::vector<Eigen::MatrixXd>& res, const std::string& title) {
-    rp::Plot p{title, "time [h]", "measured - model [K]", {}, false};
-    for (int c = 0; c < nc; ++c) {
-      rp::Series s{r.columns[c], {}, {}, rp::Series::Style::Line};
-      for (std::size_t k = 0; k < rec.rows(); k += stride) {
-        s.x.push_back(rec.time_s[k] / 3600.0);
-        s.y.push_back(res[0](k, c));
-      }
-      p.series.push_back(s);
-    }
+    rp::Plot p{title, rp::kTimeAxis, rp::kResidualAxis, {}};
+    for (int c = 0; c < nc; ++c) p.series.push_back(rp::trace(node_of(c), t_h, column(res[0], c)));
     return p;
   };
   res_panels.push_back(residual_plot(r.check_resid_before, "Residuals of the base model (check recording " + rec_name + ")"));
   if (r.chosen >= 0) res_panels.push_back(residual_plot(r.check_resid_after, "Residuals with " + r.label));
   if (!r.check_distortion.empty()) {
-    rp::Plot p{"Estimated measurement distortion (probe - node temperature)", "time [h]", "distortion [K]", {}, false};
+    rp::Plot p{"Estimated measurement distortion (probe − node temperature)", rp::kTimeAxis, "distortion (K)", {}};
     for (int c = 0; c < nc; ++c) {
       if (r.check_distortion[0].col(c).cwiseAbs().maxCoeff() == 0) continue;
-      rp::Series s{r.columns[c], {}, {}, rp::Series::Style::Line};
-      for (std::size_t k = 0; k < rec.rows(); k += stride) {
-        s.x.push_back(rec.time_s[k] / 3600.0);
-        s.y.push_back(r.check_distortion[0](k, c));
-      }
-      p.series.push_back(s);
+      p.series.push_back(rp::trace(node_of(c), t_h, column(r.check_distortion[0], c)));
     }
     res_panels.push_back(p);
   }
-  rp::save_panels(res_panels, dir + "/residual_residuals");
+  res_panels.push_back(rp::recording_speed_panel(rec));
+  rp::save_figure(res_panels, dir + "/residual_residuals", style);
   if (!r.trace.empty()) {
-    rp::Plot p{"Unexplained heat flow per node (inverse method on the base-model residual, first fit recording)", "time [h]",
-               "heat [W]", {}, false};
-    for (const auto& t : r.trace) {
-      rp::Series s{t.node, {}, {}, rp::Series::Style::Step};
-      for (std::size_t i = 0; i < t.time_s.size(); ++i) { s.x.push_back(t.time_s[i] / 3600.0); s.y.push_back(t.heat_w[i]); }
-      p.series.push_back(s);
-    }
-    rp::save_plot(p, dir + "/residual_heat_trace");
+    rp::Plot p{"Unexplained heat flow per node (inverse method on the base-model residual, first fit recording)",
+               rp::kTimeAxis, rp::kHeatAxis, {}};
+    for (const auto& t : r.trace) p.series.push_back(rp::trace(t.node, rp::hours(t.time_s), t.heat_w, rp::Series::Style::Step));
+    style.panel_height = 420;
+    rp::save_figure({p}, dir + "/residual_heat_trace", style);
   }
 }
 

@@ -1,0 +1,54 @@
+#pragma once
+// Where every part of a figure lands (plot.hpp): computed once and used by the renderer, and by
+// tests that check the legend stays inside the canvas, the x axis ends at the data, markers show.
+#include "host/report/axis_ticks.hpp"
+#include "host/report/plot.hpp"
+#include "host/report/plot_style.hpp"
+
+#include <map>
+#include <string>
+#include <vector>
+
+namespace btsm::report {
+
+struct Rect {
+  double x = 0, y = 0, w = 0, h = 0;
+  bool contains(const Rect& r) const;  // r lies within this rectangle (edges included)
+  bool overlaps(const Rect& r) const;  // the interiors intersect
+};
+
+struct LegendEntry {
+  Rect box;          // swatch and text
+  std::string text;  // shortened with an ellipsis if it would not fit the canvas width
+  Rgb colour;
+  Series::Style style = Series::Style::Line;
+};
+
+struct PanelLayout {
+  Rect area;              // the panel's share of the canvas
+  Rect plot;              // the axes box
+  std::string title;      // shortened with an ellipsis if it would not fit
+  double title_y = 0;     // baseline
+  std::string y_label;    // shortened with an ellipsis if longer than the plot is high
+  std::vector<LegendEntry> legend;
+  AxisTicks x_ticks, y_ticks;  // x_ticks.lo/hi = the data range of the panel's x group
+  std::vector<double> marker_px;  // x pixel of each marker inside the plot box (NaN if outside)
+};
+
+struct FigureLayout {
+  int width = 0, height = 0;
+  std::vector<PanelLayout> panels;
+  std::map<std::string, Rgb> colours;  // per key
+
+  double px(const Plot& p, const PanelLayout& l, double x) const;  // data -> canvas
+  double py(const Plot& p, const PanelLayout& l, double y) const;
+};
+
+// Font sizes (px) every figure uses.
+// Inner margin of the y range inside the plot frame (px).
+inline constexpr double kYInset = 5;
+inline constexpr double kTitleFont = 16, kLegendFont = 13, kTickFont = 12, kAxisLabelFont = 13, kMarkerFont = 12;
+
+FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions& options);
+
+}  // namespace btsm::report

@@ -1,0 +1,36 @@
+#pragma once
+// The figures drawn from a thermal network and a recording, in the common style (plot_style.hpp),
+// shared by `btsm validate`, `btsm heat` and the demo so the same data always look the same.
+// Library btsm_thermal_figures (it needs btsm_thermal; btsm_report itself stays generic).
+#include "host/report/plot.hpp"
+#include "host/thermal/heat_inverse.hpp"
+#include "host/thermal/network.hpp"
+#include "host/thermal/recording.hpp"
+#include "host/thermal/validate.hpp"
+
+#include <string>
+#include <vector>
+
+namespace btsm::report {
+
+// Colours keyed by the network's node names, in node order: every figure of one network agrees.
+FigureOptions network_figure_options(const thermal::Network& net);
+
+// The recording's speed column under its time axis. A recording that says what its speed_rpm
+// column really holds (a "# speed_rpm: ..." metadata line, e.g. heater power in a converted data
+// set) gets that description as the panel title instead of "Spindle speed".
+Plot recording_speed_panel(const thermal::Recording& rec);
+
+// Measured vs the model's prediction per measured node, the residual per node, and the speed.
+// `title` names the recording. Measurements whose column the recording lacks are left out.
+std::vector<Plot> validation_figure(const thermal::Network& net, const thermal::Recording& rec,
+                                    const thermal::RecordingValidation& v, const std::string& title);
+
+// `btsm heat`: the estimated heat per source node, measured vs fitted temperatures, residuals,
+// speed, and (when alpha was chosen by a rule) the criterion over alpha with the chosen alpha
+// marked. `columns` are the measured columns in the problem's order.
+std::vector<Plot> heat_figure(const thermal::Network& net, const thermal::Recording& rec,
+                              const thermal::InverseProblem& p, const thermal::HeatInverseResult& r,
+                              const std::vector<std::string>& columns, const std::string& method);
+
+}  // namespace btsm::report

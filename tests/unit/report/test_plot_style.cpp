@@ -1,0 +1,216 @@
+// The common plot style (host/report/plot_style.hpp, plot_layout.hpp): legends inside the canvas,
+// one colour per node across panels and figures, x axes ending at the data, markers drawn, SVG
+// within its size bound while the PNG keeps every sample.
+#include "host/report/decimate.hpp"
+#include "host/report/plot_layout.hpp"
+#include "host/report/plot_style.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+#include <filesystem>
+#include <random>
+
+namespace fs = std::filesystem;
+using namespace btsm::report;
+
+namespace {
+
+std::vector<double> ramp(size_t n, double lo, double hi) {
+  std::vector<double> v(n);
+  for (size_t i = 0; i < n; ++i) v[i] = lo + (hi - lo) * static_cast<double>(i) / static_cast<double>(n - 1);
+  return v;
+}
+
+std::vector<double> noisy_wave(size_t n, double offset, unsigned seed) {
+  std::mt19937 g(seed);
+  std::normal_distribution<double> noise(0, 0.05);
+  std::vector<double> v(n);
+  for (size_t i = 0; i < n; ++i) v[i] = offset + std::sin(static_cast<double>(i) * 5e-4) + noise(g);
+  return v;
+}
+
+Rect canvas(const FigureLayout& L) { return Rect{0, 0, static_cast<double>(L.width), static_cast<double>(L.height)}; }
+
+}  // namespace
+
+TEST(PlotStyle, LegendStaysInsideTheCanvasAndOffTheData) {
+  // Many long labels: the old legend column right of the plot ran off the canvas.
+  Plot p{"A figure with more legend entries than one row holds", kTimeAxis, kTemperatureAxis, {}};
+  const auto t = ramp(50, 0, 26.2);
+  for (int k = 0; k < 9; ++k) {
+    const std::string node = "a_node_with_a_rather_long_name_" + std::to_string(k);
+    p.series.push_back(measured(node, t, noisy_wave(50, k, k)));
+    p.series.push_back(model(node, t, noisy_wave(50, k, k + 100)));
+  }
+  p.series.push_back(alternative("x", t, t, std::string(300, 'w')));  // wider than the canvas alone
+  for (int width : {480, 1000}) {
+    FigureOptions o;
+    o.width = width;
+    const FigureLayout L = layout_figure({p, p}, o);
+    for (const auto& panel : L.panels) {
+      ASSERT_GE(panel.legend.size(), 10u);
+      for (size_t i = 0; i < panel.legend.size(); ++i) {
+        const auto& e = panel.legend[i];
+        EXPECT_TRUE(canvas(L).contains(e.box)) << e.text << " at x " << e.box.x << " w " << e.box.w << " width " << width;
+        EXPECT_TRUE(panel.area.contains(e.box)) << e.text;
+        EXPECT_FALSE(e.box.overlaps(panel.plot)) << e.text << " covers the data";
+        for (size_t j = 0; j < i; ++j) EXPECT_FALSE(e.box.overlaps(panel.legend[j].box)) << e.text;
+      }
+      EXPECT_TRUE(canvas(L).contains(panel.plot));
+    }
+  }
+}
+
+TEST(PlotStyle, OneColourPerNodeInEveryPanelAndFigure) {
+  const auto t = ramp(10, 0, 1);
+  Plot temps{"temps", kTimeAxis, kTemperatureAxis, {measured("column", t, t), model("column", t, t),
+                                                    measured("head", t, t), model("head", t, t)}};
+  // The residual panel lists the nodes in another order: colours must follow the node, not the position.
+  Plot resid{"residuals", kTimeAxis, kResidualAxis, {trace("head", t, t), trace("column", t, t), trace("spindle", t, t)}};
+  FigureOptions o;
+  o.key_order = {"spindle", "head", "column"};
+  const FigureLayout L = layout_figure({temps, resid}, o);
+  EXPECT_EQ(L.colours.at("column"), L.colours.at("column"));
+  EXPECT_FALSE(L.colours.at("column") == L.colours.at("head"));
+  EXPECT_FALSE(L.colours.at("spindle") == L.colours.at("head"));
+  // The same network's order gives the same colours in a figure that shows only one node.
+  const FigureLayout single = layout_figure({Plot{"only column", kTimeAxis, kResidualAxis, {trace("column", t, t)}}}, o);
+  EXPECT_EQ(single.colours.at("column"), L.colours.at("column"));
+  // Legend entries of a node carry the node's colour in both panels.
+  auto entry_colour = [](const PanelLayout& pl, const std::string& text) {
+    for (const auto& e : pl.legend)
+      if (e.text == text) return e.colour;
+    ADD_FAILURE() << "no legend entry " << text;
+    return Rgb{};
+  };
+  EXPECT_EQ(entry_colour(L.panels[0], "head"), entry_colour(L.panels[1], "head"));
+  // Channel role names keep their colour whatever else a figure holds.
+  const auto a = assign_colours({Plot{"", "", "", {trace("rear_bearing", t, t), trace("housing", t, t)}}}, {});
+  const auto b = assign_colours({Plot{"", "", "", {trace("shaft", t, t), trace("rear_bearing", t, t)}}}, {"shaft", "zzz"});
+  EXPECT_EQ(a.at("rear_bearing"), b.at("rear_bearing"));
+  Rgb fixed;
+  ASSERT_TRUE(fixed_colour("rear_bearing", fixed));
+  EXPECT_EQ(fixed, a.at("rear_bearing"));
+}
+
+TEST(PlotStyle, NodeNamesInTheLegendAndKindsSeparately) {
+  const auto t = ramp(10, 0, 1);
+  Plot p{"", kTimeAxis, kTemperatureAxis, {measured("rear_bearing", t, t), model("rear_bearing", t, t)}};
+  const FigureLayout L = layout_figure({p}, {});
+  std::vector<std::string> texts;
+  for (const auto& e : L.panels[0].legend) texts.push_back(e.text);
+  EXPECT_EQ(texts, (std::vector<std::string>{"rear bearing", "measured", "model"}));
+}
+
+TEST(PlotStyle, TimeAxisEndsAtTheDataAndStackedPanelsLineUp) {
+  const auto t = ramp(100, 0, 26.2);
+  Plot temps{"t", kTimeAxis, kTemperatureAxis, {model("a", t, t)}};
+  Plot speed = speed_panel(ramp(10, 0, 25.0), ramp(10, 0, 6000));
+  const FigureLayout L = layout_figure({temps, speed}, {});
+  for (const auto& pl : L.panels) {
+    EXPECT_DOUBLE_EQ(pl.x_ticks.lo, 0.0);
+    EXPECT_DOUBLE_EQ(pl.x_ticks.hi, 26.2);  // not rounded out to 30
+    EXPECT_LE(pl.x_ticks.values.back(), 26.2);
+    EXPECT_DOUBLE_EQ(pl.plot.x, L.panels[0].plot.x);
+    EXPECT_DOUBLE_EQ(pl.plot.w, L.panels[0].plot.w);
+  }
+  EXPECT_LT(L.panels[1].area.h, L.panels[0].area.h);  // the speed panel is the short one
+  EXPECT_EQ(speed.y_label, std::string("speed (rpm)"));
+}
+
+TEST(PlotStyle, MarkerLandsAtItsValueInsideThePlot) {
+  Plot gcv{"GCV", "α (K²/W²)", "GCV (K²)", {Series{"GCV", {1e-10, 1e-5, 1e3}, {1e-2, 1e-3, 1}, Series::Style::Line, "gcv"}}};
+  gcv.log_x = gcv.log_y = true;
+  gcv.markers.push_back({1e-5, "chosen α"});
+  const FigureLayout L = layout_figure({gcv}, {});
+  ASSERT_EQ(L.panels[0].marker_px.size(), 1u);
+  const double x = L.panels[0].marker_px[0];
+  const Rect& b = L.panels[0].plot;
+  EXPECT_GT(x, b.x);
+  EXPECT_LT(x, b.x + b.w);
+  EXPECT_NEAR(x, L.px(gcv, L.panels[0], 1e-5), 1e-9);
+  EXPECT_NEAR((x - b.x) / b.w, 5.0 / 13.0, 1e-9);  // decades 1e-10 .. 1e3
+}
+
+TEST(PlotStyle, LongTitleAndAxisLabelAreShortenedToFit) {
+  Plot p{std::string(400, 'T'), kTimeAxis, std::string(100, 'Y'), {model("a", {0, 1}, {0, 1})}};
+  FigureOptions o;
+  o.width = 600;
+  const FigureLayout L = layout_figure({p}, o);
+  EXPECT_LT(L.panels[0].title.size(), 400u);
+  EXPECT_NE(L.panels[0].title.find("…"), std::string::npos);
+  EXPECT_LT(L.panels[0].y_label.size(), 100u);  // it runs along the plot's height, not into the next panel
+  EXPECT_NE(L.panels[0].y_label.find("…"), std::string::npos);
+  EXPECT_EQ(layout_figure({Plot{"t", "x", "short", {}}}, o).panels[0].y_label, "short");
+}
+
+TEST(Decimate, LineKeepsTheEnvelopeOfEveryBucketAndTheBreaks) {
+  std::vector<double> x, y;
+  for (int i = 0; i < 1000; ++i) x.push_back(i * 0.01), y.push_back(i % 7 == 3 ? 5.0 : (i % 11 == 0 ? -5.0 : 0.0));
+  y[500] = NAN;
+  const auto keep = decimate_line(x, y, 1.0);  // 10 buckets of 100 points
+  EXPECT_LE(keep.size(), 4u * 11 + 1);
+  bool has_break = false;
+  for (size_t i : keep) has_break |= i == 500;
+  EXPECT_TRUE(has_break);
+  for (int b = 0; b < 10; ++b) {  // every bucket keeps its highest and lowest value
+    double lo = 1e9, hi = -1e9;
+    for (size_t i : keep)
+      if (std::isfinite(y[i]) && static_cast<int>(std::floor(x[i])) == b) lo = std::min(lo, y[i]), hi = std::max(hi, y[i]);
+    EXPECT_EQ(hi, 5.0) << b;
+    EXPECT_EQ(lo, -5.0) << b;
+  }
+  EXPECT_EQ(decimate_line(x, y, 0).size(), x.size());  // 0 = every sample
+}
+
+TEST(Decimate, PointsOnePerCell) {
+  const auto keep = decimate_points({0.1, 0.2, 0.9, 1.1, NAN}, {0.1, 0.3, 0.2, 0.1, 0}, 1.0);
+  EXPECT_EQ(keep, (std::vector<size_t>{0, 3}));
+}
+
+TEST(PlotStyle, SvgStaysUnderItsBoundWhilePngHasEverySample) {
+  // Three panels of five 20,000-sample series each, measured dots and model lines: the old
+  // writer produced 6-11 MB SVGs from a quarter of that.
+  const size_t n = 20000;
+  const auto t = ramp(n, 0, 26.2);
+  std::vector<Plot> panels;
+  for (int k = 0; k < 3; ++k) {
+    Plot p{"panel", kTimeAxis, kTemperatureAxis, {}};
+    for (int s = 0; s < 5; ++s) {
+      const std::string node = "node" + std::to_string(s);
+      p.series.push_back(measured(node, t, noisy_wave(n, s, 10 * k + s)));
+      p.series.push_back(model(node, t, noisy_wave(n, s, 1000 + 10 * k + s)));
+    }
+    panels.push_back(p);
+  }
+  const fs::path dir = fs::temp_directory_path() / "btsm_plot_style_test";
+  fs::create_directories(dir);
+  save_figure(panels, (dir / "big").string());
+  EXPECT_LE(fs::file_size(dir / "big.svg"), 1000000u);
+  EXPECT_GT(fs::file_size(dir / "big.svg"), 10000u);
+  // A tighter bound is honoured too (coarser decimation).
+  FigureOptions tight;
+  tight.svg_max_bytes = 300000;
+  save_figure(panels, (dir / "tight").string(), tight);
+  EXPECT_LE(fs::file_size(dir / "tight.svg"), 300000u);
+  // The PNG is drawn from every sample: the two PNGs are the same picture.
+  EXPECT_EQ(fs::file_size(dir / "big.png"), fs::file_size(dir / "tight.png"));
+  fs::remove_all(dir);
+}
+
+TEST(AxisTicks, WithinEndsExactlyAtTheData) {
+  const AxisTicks t = linear_ticks_within(0.0, 26.2, 8);
+  EXPECT_DOUBLE_EQ(t.lo, 0.0);
+  EXPECT_DOUBLE_EQ(t.hi, 26.2);
+  EXPECT_LE(t.values.back(), 26.2);
+  EXPECT_GE(t.values.size(), 4u);
+}
+
+TEST(AxisTicks, ManyDecadesLabelOnlySome) {
+  const AxisTicks t = log_ticks(1e-21, 10, 6);
+  int labelled = 0;
+  for (const auto& l : t.labels) labelled += !l.empty();
+  EXPECT_LE(labelled, 6);
+  EXPECT_EQ(t.values.size(), 23u);  // every decade keeps its grid line
+}

@@ -1,0 +1,98 @@
+// The figures of a network and a recording (host/report/thermal_figures.hpp) as `validate`, `heat`
+// and the demo draw them: node names, °C, a speed panel, the chosen alpha marked.
+#include "host/report/plot_layout.hpp"
+#include "host/report/thermal_figures.hpp"
+
+#include <gtest/gtest.h>
+
+#include <cmath>
+
+using namespace btsm;
+using namespace btsm::report;
+
+namespace {
+
+thermal::Recording small_recording(const thermal::Network& net) {
+  thermal::Recording rec;
+  rec.source = "warmup.csv";
+  for (const auto& m : net.measurements) rec.channels.push_back(m.column);
+  const int n = 50;
+  rec.temp_c = Eigen::MatrixXd::Constant(n, static_cast<Eigen::Index>(rec.channels.size()), 25.0);
+  for (int k = 0; k < n; ++k) {
+    rec.time_s.push_back(600.0 * k);
+    rec.speed_rpm.push_back(k < 30 ? 6000 : 0);
+    rec.ambient_c.push_back(20);
+  }
+  rec.temp_c(3, 0) = NAN;  // a missing sample stays missing
+  return rec;
+}
+
+bool mentions_deg_c(const std::string& s) { return s.find("degC") != std::string::npos; }
+
+void expect_common_style(const std::vector<Plot>& panels, const thermal::Network& net) {
+  bool speed = false;
+  for (const auto& p : panels) {
+    EXPECT_FALSE(mentions_deg_c(p.y_label) || mentions_deg_c(p.x_label) || mentions_deg_c(p.title)) << p.title;
+    for (const auto& s : p.series) {
+      if (s.key == "speed") {
+        speed = true;
+        continue;
+      }
+      if (p.x_label != kTimeAxis) continue;
+      EXPECT_GE(net.node_index(s.key), 0) << "series keyed by '" << s.key << "', not a node name";
+    }
+  }
+  EXPECT_TRUE(speed) << "no speed panel";
+}
+
+}  // namespace
+
+TEST(ThermalFigures, ValidationShowsNodesInDegreesAndTheSpeed) {
+  const thermal::Network net = thermal::preset_network("spindle4");
+  const thermal::Recording rec = small_recording(net);
+  thermal::RecordingValidation v;
+  v.predicted_c = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(rec.rows()), net.node_count(), 25.5);
+  const auto panels = validation_figure(net, rec, v, "warmup.csv");
+  ASSERT_EQ(panels.size(), 3u);
+  EXPECT_EQ(panels[0].y_label, std::string(kTemperatureAxis));
+  expect_common_style(panels, net);
+  const FigureLayout L = layout_figure(panels, network_figure_options(net));
+  EXPECT_DOUBLE_EQ(L.panels[0].x_ticks.hi, rec.time_s.back() / 3600.0);
+  // Measured and predicted of one node share the colour; every node has its own.
+  EXPECT_EQ(panels[0].series[0].key, panels[0].series[1].key);
+  EXPECT_EQ(panels[0].series[0].style, Series::Style::Points);
+  EXPECT_EQ(panels[0].series[1].style, Series::Style::Line);
+}
+
+TEST(ThermalFigures, HeatMarksTheChosenAlpha) {
+  const thermal::Network net = thermal::preset_network("spindle4");
+  const thermal::Recording rec = small_recording(net);
+  thermal::InverseProblem p;
+  p.measured = rec.temp_c;
+  p.measure_map = Eigen::MatrixXd::Zero(rec.temp_c.cols(), net.node_count());
+  for (size_t m = 0; m < net.measurements.size(); ++m)
+    p.measure_map(static_cast<Eigen::Index>(m), net.measurements[m].node) = 1;
+  p.source_nodes = {net.node_index("rear_bearing"), net.node_index("front_bearing")};
+  thermal::HeatInverseResult r;
+  r.piece_start_s = {0, 9000, 18000};
+  r.heat_w = Eigen::MatrixXd::Constant(3, 2, 40.0);
+  r.fitted_c = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(rec.rows()), net.node_count(), 25.2);
+  r.alpha = 4.2e-8;
+  r.rule = "gcv";
+  for (double e = -12; e <= 2; e += 1) r.scan.push_back({std::pow(10.0, e), 1, 1, 1, 1 + std::fabs(e + 7.4)});
+  std::vector<std::string> cols;
+  for (const auto& m : net.measurements) cols.push_back(m.column);
+  const auto panels = heat_figure(net, rec, p, r, cols, "tikhonov1");
+  expect_common_style(panels, net);
+  const Plot& gcv = panels.back();
+  ASSERT_EQ(gcv.markers.size(), 1u);
+  EXPECT_DOUBLE_EQ(gcv.markers[0].x, r.alpha);
+  EXPECT_NE(gcv.markers[0].label.find("4.2e-08"), std::string::npos);
+  EXPECT_TRUE(gcv.log_x);
+  const FigureLayout L = layout_figure(panels, network_figure_options(net));
+  const double x = L.panels.back().marker_px[0];
+  EXPECT_GT(x, L.panels.back().plot.x);
+  EXPECT_LT(x, L.panels.back().plot.x + L.panels.back().plot.w);
+  // The heat of the last piece is drawn until the recording ends.
+  EXPECT_DOUBLE_EQ(panels[0].series[0].x.back(), rec.time_s.back() / 3600.0);
+}
