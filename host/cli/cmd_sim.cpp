@@ -40,6 +40,7 @@ struct SimArgs {
   std::string eeprom;
   std::string duration;
   bool no_wait = false;
+  double host_gone_exit_s = 60.0;
   uint64_t seed = 1;
   double noise = 1.0;
   std::string ch5 = "surface";
@@ -87,6 +88,8 @@ void run_sim(const SimArgs& a) {
   o.truth_period_s = a.truth_period_s;
   o.eeprom_path = a.eeprom;
   o.wait_for_host = !a.no_wait;
+  if (a.host_gone_exit_s < 0) throw CommandError(kExitUsage, "--host-gone-exit must be >= 0 s (0 = wait for ever)");
+  if (a.host_gone_exit_s > 0) o.host_gone_exit_s = a.host_gone_exit_s;
   o.adc.seed = a.seed;
   o.adc.noise_scale = a.noise;
   o.log = [](const std::string& s) { std::cerr << s << "\n"; };
@@ -139,6 +142,7 @@ void run_sim(const SimArgs& a) {
     j["bytes_from_host"] = s.bytes_from_host;
     j["bytes_dropped"] = s.bytes_dropped;
     j["mcu_resets"] = s.board.mcu_resets;
+    j["ended_host_gone"] = s.ended_host_gone;
     if (s.board.cycles) {
       j["cpu_cycles"] = s.board.cycles;
       j["cpu_active_cycles"] = s.board.active_cycles;
@@ -194,6 +198,10 @@ void register_sim_commands(CLI::App& app) {
   cmd->add_option("--eeprom", a->eeprom, "EEPROM image file (1024 bytes), loaded at start and saved at exit");
   cmd->add_option("--duration", a->duration, "simulated run time (default: the profile's length)");
   cmd->add_flag("--no-wait", a->no_wait, "free-running: drop output while no host listens instead of waiting");
+  cmd->add_option("--host-gone-exit", a->host_gone_exit_s,
+                  "once a host has opened the port and closed it again, end when none reopens it within this many "
+                  "wall seconds (0 = wait for ever)")
+      ->capture_default_str();
   cmd->add_option("--seed", a->seed, "AD7794 noise seed")->capture_default_str();
   cmd->add_option("--noise", a->noise, "AD7794 noise scale (1 = datasheet model, 0 = noiseless)")->capture_default_str();
   cmd->add_option("--ch5", a->ch5, "spare probe: surface (housing surface), shaft (on the stationary shaft end, reads the shaft node) or disabled (AIN5 open)")->capture_default_str();

@@ -7,6 +7,7 @@
 #include <algorithm>
 #include <chrono>
 #include <cmath>
+#include <cstdio>
 #include <sstream>
 #include <stdexcept>
 
@@ -18,6 +19,16 @@ BoardKind parse_board_kind(const std::string& s) {
   if (s == "native") return BoardKind::Native;
   if (s == "avr") return BoardKind::Avr;
   throw std::invalid_argument("board '" + s + "': expected native or avr");
+}
+
+// What the fifth probe measures in the truth file's channel list (--ch5).
+const char* ch5_description(Ch5Mode mode) {
+  switch (mode) {
+    case Ch5Mode::HousingSurface: return "housing surface";
+    case Ch5Mode::ShaftEnd: return "shaft end (reads the shaft node)";
+    case Ch5Mode::Disabled: return "not connected (AIN5 open)";
+  }
+  return "unknown";
 }
 
 struct SimModule::Pty {
@@ -59,7 +70,8 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
     w.write_meta("board", board_->kind());
     w.write_meta("network", opts_.plant.network);
     w.write_meta("speed_profile", opts_.plant.speed.to_string());
-    w.write_meta("channels", "T1 rear bearing, T2 housing, T3 front bearing, T4 ambient, T5 housing surface");
+    w.write_meta("channels", std::string("T1 rear bearing, T2 housing, T3 front bearing, T4 ambient, T5 ") +
+                                 ch5_description(opts_.plant.ch5));
     for (const auto& f : opts_.plant.faults) w.write_meta("fault", to_string(f));
     const auto& fx = opts_.plant.effects;
     if (fx.bearing_temp_coeff_per_k != 0.0)
@@ -119,6 +131,8 @@ void SimModule::thread_main() {
     auto pace_wall = Clock::now();
     double pace_sim = sim_time_s();
     bool waiting_logged = false;
+    bool host_seen = false;           // a host has had the pty open since the start
+    auto host_last_seen = Clock::now();
     while (!stop_ && sim_time_s() < opts_.duration_s - 1e-9) {
       // Host synchronisation: do not advance while nobody listens or the host lags behind.
       if (opts_.wait_for_host) {
@@ -129,8 +143,21 @@ void SimModule::thread_main() {
           if (pty_) {
             std::unique_lock<std::mutex> lk(mu_);
             const bool connected = pty_->bridge.host_connected();
-            if (connected) exchange_io(false);
+            if (connected) {
+              exchange_io(false);
+              host_seen = true;
+              host_last_seen = Clock::now();
+            }
             if (connected && to_host_pending_.empty()) break;
+            if (!connected && host_seen &&
+                std::chrono::duration<double>(Clock::now() - host_last_seen).count() >= opts_.host_gone_exit_s) {
+              stats_.ended_host_gone = true;
+              char line[256];
+              std::snprintf(line, sizeof line, " and none reopened it within %g s; ending at t = %.0f s",
+                            opts_.host_gone_exit_s, board_->time_s());
+              log("sim-module: the host closed " + opts_.pty_path + line);
+              break;
+            }
             lk.unlock();
             if (!connected && !waiting_logged) {
               log("sim-module: waiting for a host to open " + opts_.pty_path);
@@ -145,6 +172,7 @@ void SimModule::thread_main() {
           }
           waited = true;
         }
+        if (stats_.ended_host_gone) break;  // written by this thread only
         if (waited) {
           const double dt = std::chrono::duration<double>(Clock::now() - w0).count();
           std::lock_guard<std::mutex> lk(mu_);

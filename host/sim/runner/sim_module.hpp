@@ -40,6 +40,10 @@
 
 namespace btsm::sim {
 
+// "housing surface", "shaft end (reads the shaft node)", ...: the fifth probe's place, as the
+// truth file names it.
+const char* ch5_description(Ch5Mode mode);
+
 enum class BoardKind { Native, Avr };
 BoardKind parse_board_kind(const std::string& s);  // "native" | "avr"
 
@@ -51,6 +55,10 @@ struct SimModuleOptions {
   double time_scale = 0.0;             // sim s per wall s; 0 = as fast as possible ("max")
   double duration_s = std::numeric_limits<double>::infinity();  // s of simulated time
   bool wait_for_host = true;           // see header comment
+  // With wait_for_host and a pty: once a host has had the pty open and closed it, the run ends
+  // when no host reopens it within this many wall seconds (the recorder stopped early: the module
+  // does not wait for ever). Infinity = wait for ever.
+  double host_gone_exit_s = std::numeric_limits<double>::infinity();
   size_t max_unread_bytes = 16384;     // in-process back-pressure limit (bytes)
   std::string truth_csv;               // true temperatures (recording CSV), empty = none
   double truth_period_s = 1.0;         // s between truth rows
@@ -77,6 +85,7 @@ struct SimModuleStats {
   double wall_time_s = 0.0;            // wall time spent running (not waiting for a host)
   double waited_s = 0.0;               // wall time spent waiting for the host
   uint64_t bytes_to_host = 0, bytes_from_host = 0, bytes_dropped = 0;
+  bool ended_host_gone = false;        // the run ended by host_gone_exit_s, not by its duration
   BoardStats board;
 };
 

@@ -10,6 +10,10 @@
 
 #include <gtest/gtest.h>
 
+#include <chrono>
+#include <limits>
+#include <thread>
+
 using namespace btsm;
 using namespace btsm::link;
 
@@ -68,4 +72,73 @@ TEST(SimModuleLink, FlashesAModelWithTheDevelopmentKey) {
     EXPECT_EQ(e.code(), static_cast<uint8_t>(wire::Nack::AuthFailed));
   }
   EXPECT_EQ(read_model(s, blob.size()), blob);
+}
+
+namespace {
+bool ends_within(sim::SimModule& m, double seconds) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(seconds);
+  while (std::chrono::steady_clock::now() < until) {
+    if (!m.running()) return true;
+    std::this_thread::sleep_for(std::chrono::milliseconds(20));
+  }
+  return !m.running();
+}
+}  // namespace
+
+TEST(SimModuleLink, EndsWhenItsHostClosedThePortAndNoneCameBack) {
+  test::TempDir dir;
+  sim::SimModuleOptions o;
+  o.pty_path = dir.path + "/btsm-sim";
+  o.plant.speed = sim::SpeedProfile::parse("10h@6000");
+  o.time_scale = 600;  // 10 h would take a minute: the end must come from the rule, not the duration
+  o.host_gone_exit_s = 0.5;
+  sim::SimModule m(o);
+  m.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(700));
+  EXPECT_TRUE(m.running()) << "before any host opened the port it waits";
+  {
+    SerialTransport t(o.pty_path);
+    Session s(t);
+    identify(s);
+  }  // the host (a record stopped early) goes away
+  ASSERT_TRUE(ends_within(m, 5.0));
+  EXPECT_TRUE(m.stats().ended_host_gone);
+  EXPECT_LT(m.sim_time_s(), 3600.0);
+  EXPECT_TRUE(m.error().empty()) << m.error();
+
+  // Without the rule it keeps waiting for a host.
+  sim::SimModuleOptions forever = o;
+  forever.pty_path = dir.path + "/btsm-sim2";
+  forever.host_gone_exit_s = std::numeric_limits<double>::infinity();
+  sim::SimModule m2(forever);
+  m2.start();
+  {
+    SerialTransport t(forever.pty_path);
+    Session s(t);
+    identify(s);
+  }
+  EXPECT_FALSE(ends_within(m2, 1.5));
+  m2.stop();
+  EXPECT_FALSE(m2.stats().ended_host_gone);
+}
+
+TEST(SimModuleLink, TruthFileNamesWhereTheFifthProbeIs) {
+  test::TempDir dir;
+  for (auto [mode, expected] : {std::pair{sim::Ch5Mode::ShaftEnd, "T5 shaft end"},
+                                std::pair{sim::Ch5Mode::HousingSurface, "T5 housing surface"}}) {
+    sim::SimModuleOptions o;
+    o.truth_csv = dir.path + "/truth.csv";
+    o.plant.ch5 = mode;
+    o.plant.speed = sim::SpeedProfile::parse("1h@6000");
+    {
+      sim::SimModule m(o);
+      m.run_for(5);
+    }
+    const auto truth = thermal::read_recording_csv(o.truth_csv);
+    const std::string channels = truth.meta_value("channels");
+    EXPECT_NE(channels.find(expected), std::string::npos) << channels;
+    if (mode == sim::Ch5Mode::ShaftEnd) {
+      EXPECT_EQ(channels.find("housing surface"), std::string::npos) << channels;
+    }
+  }
 }
