@@ -106,7 +106,9 @@ void run_scan(const ScanArgs& a) {
   ScanOptions so;
   so.seconds = a.seconds;
   so.active = !a.passive;
-  std::cerr << fmt::format("scan: listening for {:.1f} s ...\n", a.seconds);
+  so.on_listening = [&](const std::string& adapter) {
+    std::cerr << fmt::format("scan: listening for {:.1f} s on {} ...\n", a.seconds, adapter);
+  };
   print_advertisers(a, ble_scan(so));
 }
 

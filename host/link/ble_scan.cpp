@@ -113,6 +113,7 @@ std::vector<BleAdvertiser> ble_scan(const ScanOptions& opts) {
   hci_filter_set_event(EVT_LE_META_EVENT, &nf);
   if (::setsockopt(dd, SOL_HCI, HCI_FILTER, &nf, sizeof nf) < 0)
     throw errno_error(errno, "BLE scan: set HCI filter", perm_hint);
+  if (opts.on_listening) opts.on_listening("hci" + std::to_string(dev_id));
 
   std::map<std::string, BleAdvertiser> found;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(opts.seconds);

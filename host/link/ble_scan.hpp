@@ -5,7 +5,9 @@
 #include "host/link/att_pdu.hpp"
 #include "host/link/transport.hpp"
 
+#include <functional>
 #include <map>
+#include <string>
 
 namespace btsm::link {
 
@@ -29,6 +31,9 @@ bool parse_le_advertising_event(std::span<const uint8_t> meta, std::map<std::str
 struct ScanOptions {
   double seconds = 5.0;     // scan duration, s
   bool active = true;       // active scan asks for scan responses (which carry the name)
+  // Called once the adapter scans ("hci0"), before the listening time starts: what a caller says
+  // "listening" with, so nothing claims to listen when the adapter is missing or refused.
+  std::function<void(const std::string& adapter)> on_listening;
 };
 
 // Scans and returns the advertisers sorted by RSSI (strongest first). Throws LinkError.

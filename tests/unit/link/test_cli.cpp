@@ -187,3 +187,16 @@ TEST(LinkCli, FlashFirmwareDryRunPatchesTheKey) {
   EXPECT_EQ(r.code, 3);
   EXPECT_NE(r.err.find("USB"), std::string::npos) << r.err;
 }
+
+TEST(LinkCli, ScanSaysListeningOnlyWhenAnAdapterScans) {
+  test::TempDir home;
+  const Result r = run(home, "scan --seconds 0.5");
+  if (r.code != 0) {
+    // No adapter (or no permission): the error, and no claim to be listening before it.
+    EXPECT_EQ(r.code, 3) << r.err;
+    EXPECT_EQ(r.err.find("listening"), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("BLE scan"), std::string::npos) << r.err;
+  } else {
+    EXPECT_NE(r.err.find("listening for 0.5 s on hci"), std::string::npos) << r.err;
+  }
+}
