@@ -9,6 +9,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 namespace btsm::cli {
 namespace {
@@ -31,37 +32,43 @@ std::string default_hex_path() {
   return "build/bin/btsm-fw-bluno.hex";
 }
 
-// The device's key from the store; with --new-key one is generated and stored first if it has none.
-DeviceKey key_for_device(const FlashFirmwareArgs& a, uint32_t id) {
+// The device's key from the store; with --new-key one is generated and stored first if it has
+// none -- except in a dry run, which never changes the key store: then there is no key yet
+// (nullopt) and nothing is patched.
+std::optional<DeviceKey> key_for_device(const FlashFirmwareArgs& a, uint32_t id) {
   KeyStore ks = KeyStore::from_environment();
   if (!ks.exists(id)) {
     if (!a.new_key)
       throw CommandError(kExitUsage, fmt::format("no key for device {} in {}: pass --new-key, or `btsm keys import {} HEX`",
                                                  device_id_text(id), ks.dir(), device_id_text(id)));
+    if (a.dry_run) {
+      std::cerr << "flash-firmware: dry run: would generate and store a key " << ks.path_for(id)
+                << " and write the image patched with it; nothing stored or written\n";
+      return std::nullopt;
+    }
     ks.save(id, KeyStore::generate());
     std::cerr << "flash-firmware: generated key " << ks.path_for(id) << "\n";
   }
   return ks.load(id);
 }
 
-// Patches the key record into the image and writes it (0600); returns the patched image's path.
-std::string write_patched_image(const FlashFirmwareArgs& a, uint32_t id, const DeviceKey& key) {
-  const std::string in = a.hex.empty() ? default_hex_path() : a.hex;
-  HexImage img = read_intel_hex(in);
+// Patches the key record into the image and writes it (0600).
+void write_patched_image(const FlashFirmwareArgs& a, uint32_t id, const DeviceKey& key, const std::string& out) {
+  HexImage img = read_intel_hex(a.hex.empty() ? default_hex_path() : a.hex);
   const auto r = patch_device_key(img, id, key);
   if (r.had_key)
     std::cerr << fmt::format("flash-firmware: image already held a key for device {}; replaced\n",
                              device_id_text(r.previous_device_id));
-  const std::string out = a.out.empty() ? "btsm-fw-" + device_id_text(id) + ".hex" : a.out;
   write_private_file(out, format_intel_hex(img));
   std::cerr << "flash-firmware: patched image " << out << " (device " << device_id_text(id) << ")\n";
-  return out;
 }
 
 void run_flash_firmware(const FlashFirmwareArgs& a) {
   const uint32_t id = parse_device_id_or_throw(a.device_id);
-  const DeviceKey key = key_for_device(a, id);
-  const std::string out = write_patched_image(a, id, key);
+  const std::optional<DeviceKey> key = key_for_device(a, id);
+  const std::string out = a.out.empty() ? "btsm-fw-" + device_id_text(id) + ".hex" : a.out;
+  if (key) write_patched_image(a, id, *key, out);
+  else read_intel_hex(a.hex.empty() ? default_hex_path() : a.hex);  // the dry run still checks the image
   const bool no_link_given = a.link.port.empty() && a.link.usb.empty() && a.link.ble.empty() && a.link.rfcomm.empty();
   const std::string port = a.dry_run && no_link_given ? std::string("PORT") : serial_port_for(spec_from(a.link));
   const auto cmd = avrdude_command(port, out, a.avrdude);
@@ -89,8 +96,8 @@ void register_flash_firmware(CLI::App& app) {
       "at flash 0x7DC0 of the image, saves the patched image (mode 0600: it holds the key), then runs\n"
       "  avrdude -p atmega328p -c arduino -b 115200 -P PORT -D -U flash:w:PATCHED:i\n"
       "(the Bluno is programmed like an Arduino Uno through its USB port). The key is taken from the\n"
-      "key store for --device-id; --new-key generates and stores one first. --dry-run writes the\n"
-      "patched image and prints the command without running it.\n"
+      "key store for --device-id; --new-key generates and stores one first. --dry-run changes no key:\n"
+      "it writes the patched image (when the device has a key) and prints the command without running it.\n"
       "  btsm flash-firmware --device-id 0000de71 --new-key --port /dev/ttyACM0");
   add_link_options(*c, a->link);
   c->add_option("--device-id", a->device_id, "device id to give this module (hex, e.g. 0000de71)")->required();

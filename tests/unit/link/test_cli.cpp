@@ -14,6 +14,7 @@
 
 #include <fmt/format.h>
 
+#include <filesystem>
 #include <fstream>
 #include <sstream>
 
@@ -170,11 +171,27 @@ TEST(LinkCli, FlashFirmwareDryRunPatchesTheKey) {
   Result r = run(home, "flash-firmware --device-id 0000de71 --hex " + home.path + "/fw.hex --out " + home.path +
                            "/p.hex --dry-run --port /dev/ttyACM9");
   EXPECT_EQ(r.code, 2);  // no key and no --new-key
+  // A dry run changes nothing in the key store: --new-key says what it would do, stores no key
+  // and writes no image patched with a key nobody keeps.
   r = run(home, "flash-firmware --device-id 0000de71 --new-key --hex " + home.path + "/fw.hex --out " + home.path +
                     "/p.hex --dry-run --port /dev/ttyACM9");
   ASSERT_EQ(r.code, 0) << r.err;
   EXPECT_EQ(r.out, "avrdude -p atmega328p -c arduino -b 115200 -P /dev/ttyACM9 -D -U flash:w:" + home.path +
                        "/p.hex:i\n");
+  EXPECT_NE(r.err.find("dry run: would generate and store a key"), std::string::npos) << r.err;
+  EXPECT_EQ(run(home, "keys list").out, "");
+  EXPECT_NE(run(home, "keys show 0000de71").code, 0);
+  EXPECT_FALSE(std::filesystem::exists(home.path + "/p.hex"));
+  // With a stored key the dry run writes the patched image (and still stores nothing new).
+  r = run(home, "flash-firmware --device-id 0000de71 --new-key --hex " + home.path + "/fw.hex --out " + home.path +
+                    "/p.hex --port /dev/ttyACM9 --avrdude /bin/true");
+  ASSERT_EQ(r.code, 0) << r.err;  // the real run stores the key (avrdude replaced by true)
+  const std::string stored = run(home, "keys show 0000de71").out;
+  std::filesystem::remove(home.path + "/p.hex");
+  r = run(home, "flash-firmware --device-id 0000de71 --new-key --hex " + home.path + "/fw.hex --out " + home.path +
+                    "/p.hex --dry-run --port /dev/ttyACM9");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(run(home, "keys show 0000de71").out, stored);
   struct stat st {};
   ASSERT_EQ(::stat((home.path + "/p.hex").c_str(), &st), 0);
   EXPECT_EQ(st.st_mode & 0777, 0600u);  // it holds the key
