@@ -193,8 +193,18 @@ void register_sim_commands(CLI::App& app) {
                   "fault KIND[:ARG]@START[-END], repeatable: open:ch2@3600, openchain:ch3@1h, short:ch1@100, "
                   "noadc@0, noref@50, bearing:25W@2h (rear bearing), bearing:front:25W@2h");
   cmd->add_option("--effect", a->effects,
-                  "hidden effect (not announced to the host), repeatable: bearing-tc:K (rear-bearing heat x (1 + K theta1)), "
-                  "run-in:W/TAU (W per 1000 rpm of speed increase at both bearings, decaying with TAU)");
+                  "hidden effect (not announced to the host), repeatable; NODES = node names joined by '+', "
+                  "w0 = 5000 rpm: bearing-tc:K (rear-bearing heat x (1 + K theta1), 1/K), "
+                  "run-in:W/TAU (= transient:W/TAU@rear_bearing+front_bearing), "
+                  "transient:W/TAU@NODES (W per 1000 rpm of speed increase, decaying with TAU), "
+                  "transient-gain:A/TAU@NODES (friction source x (1 + A e^-t/TAU) after each start or speed change), "
+                  "temp-heat:K@NODES (friction source x (1 + K theta), 1/K, may be < 0), "
+                  "coupled-heat:G@NODE/HOT-COLD[^E] (G (w/w0)^E (T_HOT - T_COLD) W while running, G in W/K), "
+                  "speed-heat:W@NODE[^E] (W (w/w0)^E while running), sensor-lag:TAU@chN, sensor-drift:RATE@chN (K/h), "
+                  "ambient-lag:TAU (the air follows the measured ambient), "
+                  "coolant:G@NODE=PROFILE (second boundary, W/K, column coolant_c in --truth-out), "
+                  "event:G@NODES=START-END,... (W/K more to ambient while on, column lid_open), "
+                  "latent:C/G@NODE[/GA] (missing mass C J/K tied by G W/K, GA W/K to ambient)");
   cmd->add_option("--eeprom", a->eeprom, "EEPROM image file (1024 bytes), loaded at start and saved at exit");
   cmd->add_option("--duration", a->duration, "simulated run time (default: the profile's length)");
   cmd->add_flag("--no-wait", a->no_wait, "free-running: drop output while no host listens instead of waiting");

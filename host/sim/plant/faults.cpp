@@ -93,28 +93,4 @@ std::string to_string(const FaultSpec& f) {
   return os.str();
 }
 
-void parse_effect(const std::string& spec, HiddenEffects& fx) {
-  const auto colon = spec.find(':');
-  const std::string kind = spec.substr(0, colon);
-  const std::string arg = colon == std::string::npos ? std::string() : spec.substr(colon + 1);
-  if (arg.empty()) throw std::invalid_argument("effect '" + spec + "': missing ':' and parameters");
-  if (kind == "bearing-tc") {
-    fx.bearing_temp_coeff_per_k = number(arg, "effect '" + spec + "' coefficient (1/K)");
-    if (std::fabs(fx.bearing_temp_coeff_per_k) > 0.2)
-      throw std::invalid_argument("effect '" + spec + "': |K| must be <= 0.2 per kelvin");
-  } else if (kind == "run-in") {
-    const auto slash = arg.find('/');
-    if (slash == std::string::npos)
-      throw std::invalid_argument("effect '" + spec + "': expected run-in:W/TAU, e.g. run-in:6W/20m");
-    std::string w = arg.substr(0, slash);
-    if (!w.empty() && (w.back() == 'W' || w.back() == 'w')) w.pop_back();
-    fx.runin_w_per_krpm = number(w, "effect '" + spec + "' heat (W per 1000 rpm)");
-    fx.runin_tau_s = parse_duration_s(arg.substr(slash + 1), "effect '" + spec + "' time constant");
-    if (fx.runin_w_per_krpm < 0.0 || fx.runin_w_per_krpm > 100.0 || fx.runin_tau_s <= 0.0)
-      throw std::invalid_argument("effect '" + spec + "': need 0..100 W per 1000 rpm and TAU > 0");
-  } else {
-    throw std::invalid_argument("effect '" + spec + "': unknown kind '" + kind + "' (bearing-tc, run-in)");
-  }
-}
-
 }  // namespace btsm::sim

@@ -12,13 +12,10 @@
 //   noref@50             reference lost (REFIN open: NOXREF, codes clamp)
 //   bearing:25W@7200     bearing fault: 25 W extra heat at the rear bearing (node 1) from 2 h
 //   bearing:front:25W@2h the same at the front bearing (node 3); bearing:rear:25W@2h = bearing:25W@2h
-// Hidden effects (physics the paper's model lacks; never announced to the host):
-//   bearing-tc:K         rear-bearing heat grows with its own rise: Q1 -> Q1 (1 + K theta1),
-//                        K in 1/K (e.g. 0.01 = +1 % per kelvin)
-//   run-in:W/TAU         after every speed increase, extra heat at both bearings (nodes 1 and 3)
-//                        starting at W watts per 1000 rpm of increase, decaying with time
-//                        constant TAU (units allowed, e.g. run-in:6W/20m)
+// Hidden effects (physics the paper's model lacks): hidden_effects.hpp.
 // Errors throw std::invalid_argument naming the spec and the part that is wrong.
+#include "host/sim/plant/hidden_effects.hpp"
+
 #include <limits>
 #include <string>
 #include <vector>
@@ -42,15 +39,5 @@ struct FaultSpec {
 
 FaultSpec parse_fault(const std::string& spec);
 std::string to_string(const FaultSpec& f);
-
-struct HiddenEffects {
-  double bearing_temp_coeff_per_k = 0.0;  // 1/K, Q1 scaled by (1 + k theta1); 0 = off
-  double runin_w_per_krpm = 0.0;          // W per 1000 rpm of speed increase; 0 = off
-  double runin_tau_s = 1800.0;            // s, decay time constant of the run-in heat
-  bool any() const { return bearing_temp_coeff_per_k != 0.0 || runin_w_per_krpm != 0.0; }
-};
-
-// Adds one "--effect" spec to `fx` (several effects combine).
-void parse_effect(const std::string& spec, HiddenEffects& fx);
 
 }  // namespace btsm::sim

@@ -41,7 +41,23 @@ SpindlePlant::SpindlePlant(PlantOptions opts) : opts_(std::move(opts)) {
   if (opts_.start_steady) x0 = thermal::steady_state_c(net, params_, opts_.start_steady_rpm, amb0);
   sim_->reset(x0);
   extra_w_ = Eigen::VectorXd::Zero(net.node_count());
-  last_rpm_ = opts_.start_steady ? opts_.start_steady_rpm : opts_.speed.rpm_at(0.0);
+  // A cold machine stood still before t = 0, so a speed at t = 0 is a start.
+  effects_ = make_effects(opts_.start_steady ? opts_.start_steady_rpm : 0.0);
+}
+
+std::unique_ptr<EffectDynamics> SpindlePlant::make_effects(double rpm0) const {
+  ProbeNodes probes;
+  probes.rear_bearing = node_[0];
+  probes.housing = node_[1];
+  probes.front_bearing = node_[2];
+  probes.shaft = node_[3];
+  return std::make_unique<EffectDynamics>(opts_.effects, sim_->network(), probes, sim_->node_temp_c(), ambient_c(),
+                                          rpm0);
+}
+
+void SpindlePlant::set_effects(const HiddenEffects& fx) {
+  opts_.effects = fx;
+  effects_ = make_effects(speed_rpm());
 }
 
 double SpindlePlant::source_heat_at_node(int node, double speed_rpm) {
@@ -58,29 +74,22 @@ void SpindlePlant::compute_extra_heat(double rpm) {
   for (const auto& f : opts_.faults)
     if (f.kind == FaultKind::BearingHeat && f.active_at(t))
       extra_w_[node_[f.place == BearingPlace::Front ? 2 : 0]] += f.heat_w;
-  const HiddenEffects& fx = opts_.effects;
-  if (fx.bearing_temp_coeff_per_k != 0.0) {
-    const double theta1 = sim_->node_temp_c()[node_[0]] - ambient_c();
-    extra_w_[node_[0]] += fx.bearing_temp_coeff_per_k * theta1 * source_heat_at_node(node_[0], rpm);
-  }
-  if (fx.runin_w_per_krpm != 0.0) {
-    if (rpm > last_rpm_) runin_w_ += fx.runin_w_per_krpm * (rpm - last_rpm_) / 1000.0;
-    extra_w_[node_[0]] += runin_w_;
-    extra_w_[node_[2]] += runin_w_;
-    runin_w_ *= std::exp(-opts_.step_s / fx.runin_tau_s);
-  }
-  last_rpm_ = rpm;
+  // Hidden effects: Q of the paper's sources at this speed, node temperatures at the step start.
+  source_heat_at_node(0, rpm);  // refreshes cached_heat_w_ for this speed
+  effects_->add_heat(t, rpm, cached_heat_w_, sim_->node_temp_c(), extra_w_);
 }
 
 void SpindlePlant::advance_to(double t_s) {
   const double h = opts_.step_s;
   while (t_s_ + h <= t_s + 1e-9) {
     const double rpm = speed_rpm();
-    const double amb = ambient_c();
     compute_extra_heat(rpm);
-    sim_->step(h, rpm, amb, extra_w_.isZero() ? nullptr : &extra_w_);
+    sim_->step(h, rpm, effects_->network_ambient_c(), extra_w_.isZero() ? nullptr : &extra_w_);
     // Accumulate as an integer step count to avoid drift over long runs.
     t_s_ = std::round((t_s_ + h) / h) * h;
+    double points[kChannels];
+    for (int ch = 1; ch <= kChannels; ++ch) points[ch - 1] = point_temp_c(ch);
+    effects_->advance(h, sim_->node_temp_c(), ambient_c(), points);
   }
 }
 
@@ -88,6 +97,10 @@ double SpindlePlant::speed_rpm() const { return opts_.speed.rpm_at(t_s_); }
 double SpindlePlant::ambient_c() const { return opts_.ambient.celsius_at(t_s_); }
 
 double SpindlePlant::probe_temp_c(int ch) const {
+  return effects_->probe_reading_c(ch, point_temp_c(ch), t_s_);
+}
+
+double SpindlePlant::point_temp_c(int ch) const {
   const auto& x = sim_->node_temp_c();
   switch (ch) {
     case 1: return x[node_[0]];

@@ -22,6 +22,7 @@
 //
 // Time advances in fixed ZOH steps of `step_s` (inputs held constant within a step; segment
 // boundaries are honoured at step resolution). Not thread-safe: the runner serialises access.
+#include "host/sim/plant/effect_dynamics.hpp"
 #include "host/sim/plant/faults.hpp"
 #include "host/sim/plant/profile.hpp"
 #include "host/thermal/network.hpp"
@@ -72,6 +73,12 @@ class SpindlePlant {
   bool reference_lost() const;
   // Heat added to each node in the current step beyond the paper's model (faults + effects), W.
   const Eigen::VectorXd& extra_heat_w() const { return extra_w_; }
+  // The air temperature the network exchanges heat with (differs from ambient_c() only with the
+  // hidden effect ambient-lag), degC.
+  double network_ambient_c() const { return effects_->network_ambient_c(); }
+  // Declared extra columns of the hidden effects (coolant_c degC, lid_open 0/1) and their values now.
+  std::vector<std::string> declared_columns() const { return effects_->declared_columns(); }
+  std::vector<double> declared_values() const { return effects_->declared_values(t_s_); }
   const Eigen::VectorXd& node_temp_c() const { return sim_->node_temp_c(); }
   const thermal::Network& network() const { return sim_->network(); }
 
@@ -79,12 +86,15 @@ class SpindlePlant {
   void replace_speed_from_now(const std::vector<SpeedSegment>& segs);
   void queue_speed(const SpeedSegment& seg);
   void add_fault(const FaultSpec& f) { opts_.faults.push_back(f); }
-  void set_effects(const HiddenEffects& fx) { opts_.effects = fx; }
+  // Replaces the hidden effects from now on (their states start settled at the present state).
+  void set_effects(const HiddenEffects& fx);
   const SpeedProfile& speed_profile() const { return opts_.speed; }
   const PlantOptions& options() const { return opts_; }
 
  private:
   int node_of_channel(int ch) const;  // network node index for ch1..ch3
+  double point_temp_c(int ch) const;  // true temperature at the point a probe sits on, degC
+  std::unique_ptr<EffectDynamics> make_effects(double rpm0) const;
   void compute_extra_heat(double speed_rpm);
   double source_heat_at_node(int node, double speed_rpm);
 
@@ -94,8 +104,7 @@ class SpindlePlant {
   Eigen::VectorXd extra_w_;
   int node_[4] = {0, 1, 2, 3};  // rear bearing, housing, front bearing, shaft
   double t_s_ = 0.0;
-  double last_rpm_ = 0.0;
-  double runin_w_ = 0.0;   // W at each bearing, decaying
+  std::unique_ptr<EffectDynamics> effects_;
   double cached_heat_rpm_ = -1.0;
   Eigen::VectorXd cached_heat_w_;
 };

@@ -64,6 +64,7 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
     truth_->nodes = size_t(net.node_count());
     for (const auto& n : net.nodes) cols.push_back("node_" + n.name);
     for (const auto& n : net.nodes) cols.push_back("extra_heat_W_" + n.name);
+    for (const auto& c : plant_->declared_columns()) cols.push_back(c);
     truth_->writer.open(opts_.truth_csv, cols, 5);
     auto& w = truth_->writer;
     w.write_meta("source", "btsm sim-module (simulated truth, not a measurement)");
@@ -73,12 +74,14 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
     w.write_meta("channels", std::string("T1 rear bearing, T2 housing, T3 front bearing, T4 ambient, T5 ") +
                                  ch5_description(opts_.plant.ch5));
     for (const auto& f : opts_.plant.faults) w.write_meta("fault", to_string(f));
-    const auto& fx = opts_.plant.effects;
-    if (fx.bearing_temp_coeff_per_k != 0.0)
-      w.write_meta("effect", "bearing-tc:" + std::to_string(fx.bearing_temp_coeff_per_k));
-    if (fx.runin_w_per_krpm != 0.0)
-      w.write_meta("effect", "run-in:" + std::to_string(fx.runin_w_per_krpm) + "W/" +
-                                 std::to_string(fx.runin_tau_s) + "s");
+    for (const auto& e : opts_.plant.effects.specs) w.write_meta("effect", e);
+    const auto join = [](const std::vector<std::string>& v) {
+      std::string s;
+      for (const auto& x : v) s += (s.empty() ? "" : ",") + x;
+      return s;
+    };
+    if (!opts_.plant.effects.boundaries.empty()) w.write_meta("boundary_columns", join(opts_.plant.effects.boundary_columns()));
+    if (!opts_.plant.effects.events.empty()) w.write_meta("event_columns", join(opts_.plant.effects.event_columns()));
     w.write_meta("columns", "T*, node_* in degC; extra_heat_W_* = heat beyond the paper's model in W");
   }
   if (!opts_.pty_path.empty()) pty_ = std::make_unique<Pty>(opts_.pty_path);
@@ -285,6 +288,7 @@ void SimModule::write_truth_row() {
     for (Eigen::Index i = 0; i < x.size(); ++i) v.push_back(x[i]);
     const auto& q = plant_->extra_heat_w();
     for (Eigen::Index i = 0; i < q.size(); ++i) v.push_back(q[i]);
+    for (double d : plant_->declared_values()) v.push_back(d);
     truth_->writer.append(plant_->time_s(), plant_->speed_rpm(), plant_->ambient_c(), v);
     next_truth_s_ += opts_.truth_period_s;
   }
