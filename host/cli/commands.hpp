@@ -10,4 +10,5 @@ void register_heat_commands(CLI::App& app);      // heat
 void register_residual_commands(CLI::App& app);  // residual
 void register_sim_commands(CLI::App& app);       // sim-module
 void register_demo_commands(CLI::App& app);      // demo
+void register_suite_commands(CLI::App& app);     // effect-suite
 }  // namespace btsm::cli

@@ -19,6 +19,7 @@ int main(int argc, char** argv) {
   btsm::cli::register_residual_commands(app);
   btsm::cli::register_sim_commands(app);
   btsm::cli::register_demo_commands(app);
+  btsm::cli::register_suite_commands(app);
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {

@@ -1,0 +1,183 @@
+#include "host/sim/suite/runner.hpp"
+
+#include "host/sim/suite/generate.hpp"
+
+#include <fmt/core.h>
+
+#include <cerrno>
+#include <chrono>
+#include <csignal>
+#include <cstring>
+#include <fcntl.h>
+#include <filesystem>
+#include <fstream>
+#include <spawn.h>
+#include <stdexcept>
+#include <sys/wait.h>
+#include <thread>
+#include <unistd.h>
+
+extern char** environ;
+
+namespace fs = std::filesystem;
+
+namespace btsm::sim::suite {
+namespace {
+
+using Clock = std::chrono::steady_clock;
+
+nlohmann::json read_json(const fs::path& p) {
+  std::ifstream in(p);
+  if (!in) throw std::runtime_error("cannot open " + p.string());
+  return nlohmann::json::parse(in);
+}
+
+struct Child {
+  size_t index = 0;
+  pid_t pid = -1;
+  Clock::time_point started;
+};
+
+// Starts argv with stdout -> out_path, stderr -> err_path.
+pid_t spawn(const std::vector<std::string>& argv, const std::string& out_path, const std::string& err_path) {
+  posix_spawn_file_actions_t fa;
+  posix_spawn_file_actions_init(&fa);
+  posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  posix_spawn_file_actions_addopen(&fa, STDERR_FILENO, err_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);
+  std::vector<char*> args;
+  for (const auto& a : argv) args.push_back(const_cast<char*>(a.c_str()));
+  args.push_back(nullptr);
+  pid_t pid = -1;
+  const int rc = posix_spawn(&pid, argv[0].c_str(), &fa, nullptr, args.data(), environ);
+  posix_spawn_file_actions_destroy(&fa);
+  if (rc != 0) throw std::runtime_error("cannot start " + argv[0] + ": " + std::strerror(rc));
+  return pid;
+}
+
+std::string last_line(const fs::path& p) {
+  std::ifstream in(p);
+  std::string line, last;
+  while (std::getline(in, line))
+    if (!line.empty()) last = line;
+  return last;
+}
+
+}  // namespace
+
+std::vector<std::string> residual_command(const std::string& btsm, const std::string& case_dir,
+                                          const std::vector<std::string>& extra) {
+  const nlohmann::json truth = read_json(fs::path(case_dir) / "truth.json");
+  std::vector<std::string> argv{btsm, "residual", "--preset", "spindle4", "--json"};
+  for (const char* use : {"fit", "check"})
+    for (const auto& r : truth.at("runs"))
+      if (r.at("use") == use) {
+        argv.push_back(std::string("--") + use);
+        argv.push_back((fs::path(case_dir) / r.at("file").get<std::string>()).string());
+      }
+  argv.insert(argv.end(), extra.begin(), extra.end());
+  return argv;
+}
+
+SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& opts) {
+  const auto t0 = Clock::now();
+  const auto say = [&](const std::string& s) {
+    if (opts.progress) opts.progress(s);
+  };
+  const fs::path out = opts.out_dir;
+  fs::create_directories(out / "cases");
+  const auto dir_of = [&](const SuiteCase& c) { return (out / "cases" / c.id).string(); };
+
+  if (opts.generate)
+    for (size_t i = 0; i < cases.size(); ++i) {
+      const GeneratedCase g = generate_case(cases[i], dir_of(cases[i]));
+      say(fmt::format("generated {}/{} {}: {} recordings, noise floor {:.4f} K (check), {:.1f} s", i + 1, cases.size(),
+                      cases[i].id, g.runs.size(), g.noise_floor_check_k, g.wall_s));
+    }
+
+  SuiteReport rep;
+  if (!opts.run) return rep;
+  if (opts.btsm_path.empty() || !fs::exists(opts.btsm_path))
+    throw std::invalid_argument("effect suite: btsm executable '" + opts.btsm_path + "' not found");
+
+  std::vector<CaseResult> results(cases.size());
+  std::vector<Child> running;
+  size_t next = 0, done = 0;
+  const int jobs = std::max(1, opts.jobs);
+  const auto finish = [&](const Child& ch, int status, bool timed_out) {
+    const SuiteCase& c = cases[ch.index];
+    const fs::path dir = dir_of(c);
+    const double secs = std::chrono::duration<double>(Clock::now() - ch.started).count();
+    const nlohmann::json truth = read_json(dir / "truth.json");
+    CaseResult r;
+    if (timed_out) {
+      r = failed_case(truth, fmt::format("btsm residual ran past {:.0f} s and was stopped", opts.timeout_s), secs);
+    } else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
+      r = failed_case(truth,
+                      fmt::format("btsm residual exited with {}: {}", WIFEXITED(status) ? WEXITSTATUS(status) : -1,
+                                  last_line(dir / "residual.log")),
+                      secs);
+    } else {
+      try {
+        r = score_case(truth, read_json(dir / "residual.json"), secs);
+      } catch (const std::exception& e) {
+        r = failed_case(truth, std::string("unreadable residual.json: ") + e.what(), secs);
+      }
+    }
+    results[ch.index] = r;
+    ++done;
+    say(fmt::format("[{}/{}] {}: {} {} [{}] check {:.4f} -> {:.4f} K{} ({:.0f} s)", done, cases.size(), c.id, r.verdict,
+                    r.effect, [&] { std::string s; for (const auto& n : r.nodes) s += (s.empty() ? "" : "+") + n; return s; }(), r.rmse_before_k, r.rmse_after_k,
+                    c.kind == CaseKind::Effect ? (r.named ? ", named" : ", NOT named") : (r.claimed ? ", FALSE CLAIM" : ""),
+                    secs));
+  };
+  while (done < cases.size()) {
+    while (int(running.size()) < jobs && next < cases.size()) {
+      const fs::path dir = dir_of(cases[next]);
+      const auto argv = residual_command(opts.btsm_path, dir.string(), opts.residual_args);
+      running.push_back({next, spawn(argv, (dir / "residual.json").string(), (dir / "residual.log").string()), Clock::now()});
+      ++next;
+    }
+    std::this_thread::sleep_for(std::chrono::milliseconds(100));
+    for (size_t k = 0; k < running.size();) {
+      int status = 0;
+      const pid_t r = waitpid(running[k].pid, &status, WNOHANG);
+      const bool late = std::chrono::duration<double>(Clock::now() - running[k].started).count() > opts.timeout_s;
+      if (r == 0 && late) {
+        kill(running[k].pid, SIGKILL);
+        waitpid(running[k].pid, &status, 0);
+      }
+      if (r == running[k].pid || (r == 0 && late)) {
+        finish(running[k], status, r == 0);
+        running.erase(running.begin() + long(k));
+      } else {
+        ++k;
+      }
+    }
+  }
+
+  rep.results = results;
+  rep.rows = summarize(results);
+  rep.table_md = markdown_table(rep.rows);
+  rep.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
+  std::ofstream(out / "results.csv") << results_csv(results);
+  nlohmann::json j;
+  j["cases"] = nlohmann::json::array();
+  for (const auto& r : results) j["cases"].push_back(to_json(r));
+  j["table"] = nlohmann::json::array();
+  for (const auto& row : rep.rows)
+    j["table"].push_back({{"group", row.group},
+                          {"quiet", row.quiet},
+                          {"cases", row.cases},
+                          {"named", row.named},
+                          {"family_named", row.family_named},
+                          {"claimed", row.claimed},
+                          {"partial", row.partial},
+                          {"goal", row.goal},
+                          {"errors", row.errors}});
+  j["wall_s"] = rep.wall_s;
+  std::ofstream(out / "results.json") << j.dump(1) << "\n";
+  std::ofstream(out / "table.md") << rep.table_md;
+  return rep;
+}
+
+}  // namespace btsm::sim::suite
