@@ -78,86 +78,107 @@ Evaluation OutputErrorEvaluator::evaluate(const Eigen::VectorXd& u, bool with_ja
   return ev;
 }
 
+template <class Sink>
+void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink&& sink) const {
+  const int n = pr_.n(), nf = pr_.nf();
+  Eigen::MatrixXd S(n, nf), X(n, n), Snext(n, nf), Xnext(n, n), D(n, nf);
+  Eigen::VectorXd x(n), xnext(n), dv(n * nf), extra(n);
+  const Run& run = pr_.runs[ri];
+  const Recording& rec = *run.rec;
+  x = pr_.x0[ri];
+  S.setZero();
+  X.setIdentity();
+  for (std::size_t k = run.begin; k <= run.end; ++k) {
+    const auto kr = static_cast<Eigen::Index>(k);
+    for (std::size_t m = 0; m < run.cols.size(); ++m) {
+      const double y = rec.temp_c(kr, run.cols[m]);
+      if (!std::isfinite(y)) continue;
+      const int node = pr_.net->measurements[m].node;
+      sink(k - run.begin, x[node] - y, S.row(node), X.row(node));
+    }
+    if (k == run.end) break;
+    const double dt = rec.time_s[k + 1] - rec.time_s[k];
+    const double amb = rec.ambient_c[k];
+    const KeyData& kd = keys_.find(std::make_pair(rec.speed_rpm[k], dt))->second;
+    xnext.noalias() = kd.base.Phi * x;
+    xnext += kd.base.drive + kd.base.ambient_gain * amb;
+    if (run.extra) {
+      extra = run.extra->row(kr).transpose();
+      xnext.noalias() += kd.base.Gamma * extra;
+    }
+    if (with_jacobian) {
+      dv.noalias() = kd.dphi_stack * x;
+      if (run.extra) dv.noalias() += kd.dgamma_stack * extra;
+      D = Eigen::Map<const Eigen::MatrixXd>(dv.data(), n, nf);
+      D += kd.ddrive + kd.damb * amb;
+      Snext.noalias() = kd.base.Phi * S;
+      S = Snext + D;
+      if (pr_.estimate_x0) {
+        Xnext.noalias() = kd.base.Phi * X;
+        X = Xnext;
+      }
+    }
+    x = xnext;
+  }
+}
+
 void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const {
   const int n = pr_.n(), nf = pr_.nf();
+  if (!with_jacobian) {
+    simulate_run(ri, false, [&](std::size_t, double r, const auto&, const auto&) {
+      ev.ssr += r * r;
+      ++ev.count;
+    });
+    return;
+  }
+  // J^T J of the run from Jacobian rows gathered in blocks (a rank-k update beats k rank-1 ones).
   constexpr int kBlock = 512;
   Eigen::MatrixXd jbuf(kBlock, local);
   Eigen::VectorXd rbuf(kBlock);
-  Eigen::MatrixXd S(n, nf), X(n, n), Snext(n, nf), Xnext(n, n), D(n, nf);
-  Eigen::VectorXd x(n), xnext(n), dv(n * nf), extra(n);
-  {
-    const Run& run = pr_.runs[ri];
-    const Recording& rec = *run.rec;
-    Eigen::MatrixXd Hl;
-    Eigen::VectorXd gl;
-    if (with_jacobian) {
-      Hl = Eigen::MatrixXd::Zero(local, local);
-      gl = Eigen::VectorXd::Zero(local);
-    }
-    int fill = 0;
-    auto flush = [&] {
-      if (fill == 0) return;
-      Hl.selfadjointView<Eigen::Lower>().rankUpdate(jbuf.topRows(fill).transpose());
-      gl.noalias() += jbuf.topRows(fill).transpose() * rbuf.head(fill);
-      fill = 0;
-    };
-    x = pr_.x0[ri];
-    S.setZero();
-    X.setIdentity();
-    for (std::size_t k = run.begin; k <= run.end; ++k) {
-      const auto kr = static_cast<Eigen::Index>(k);
-      for (std::size_t m = 0; m < run.cols.size(); ++m) {
-        const double y = rec.temp_c(kr, run.cols[m]);
-        if (!std::isfinite(y)) continue;
-        const int node = pr_.net->measurements[m].node;
-        const double r = x[node] - y;
-        ev.ssr += r * r;
-        ++ev.count;
-        if (with_jacobian) {
-          jbuf.row(fill).head(nf) = S.row(node);
-          if (pr_.estimate_x0) jbuf.row(fill).tail(n) = X.row(node);
-          rbuf[fill] = r;
-          if (++fill == kBlock) flush();
-        }
-      }
-      if (k == run.end) break;
-      const double dt = rec.time_s[k + 1] - rec.time_s[k];
-      const double amb = rec.ambient_c[k];
-      const KeyData& kd = keys_.find(std::make_pair(rec.speed_rpm[k], dt))->second;
-      xnext.noalias() = kd.base.Phi * x;
-      xnext += kd.base.drive + kd.base.ambient_gain * amb;
-      if (run.extra) {
-        extra = run.extra->row(kr).transpose();
-        xnext.noalias() += kd.base.Gamma * extra;
-      }
-      if (with_jacobian) {
-        dv.noalias() = kd.dphi_stack * x;
-        if (run.extra) dv.noalias() += kd.dgamma_stack * extra;
-        D = Eigen::Map<const Eigen::MatrixXd>(dv.data(), n, nf);
-        D += kd.ddrive + kd.damb * amb;
-        Snext.noalias() = kd.base.Phi * S;
-        S = Snext + D;
-        if (pr_.estimate_x0) {
-          Xnext.noalias() = kd.base.Phi * X;
-          X = Xnext;
-        }
-      }
-      x = xnext;
-    }
-    if (with_jacobian) {
-      flush();
-      Hl.triangularView<Eigen::Upper>() = Hl.transpose();
-      ev.H.topLeftCorner(nf, nf) += Hl.topLeftCorner(nf, nf);
-      ev.g.head(nf) += gl.head(nf);
-      if (pr_.estimate_x0) {
-        const int off = nf + static_cast<int>(ri) * n;
-        ev.H.block(off, off, n, n) += Hl.bottomRightCorner(n, n);
-        ev.H.block(0, off, nf, n) += Hl.topRightCorner(nf, n);
-        ev.H.block(off, 0, n, nf) += Hl.bottomLeftCorner(n, nf);
-        ev.g.segment(off, n) += gl.tail(n);
-      }
-    }
+  Eigen::MatrixXd Hl = Eigen::MatrixXd::Zero(local, local);
+  Eigen::VectorXd gl = Eigen::VectorXd::Zero(local);
+  int fill = 0;
+  auto flush = [&] {
+    if (fill == 0) return;
+    Hl.selfadjointView<Eigen::Lower>().rankUpdate(jbuf.topRows(fill).transpose());
+    gl.noalias() += jbuf.topRows(fill).transpose() * rbuf.head(fill);
+    fill = 0;
+  };
+  simulate_run(ri, true, [&](std::size_t, double r, const auto& d_params, const auto& d_x0) {
+    ev.ssr += r * r;
+    ++ev.count;
+    jbuf.row(fill).head(nf) = d_params;
+    if (pr_.estimate_x0) jbuf.row(fill).tail(n) = d_x0;
+    rbuf[fill] = r;
+    if (++fill == kBlock) flush();
+  });
+  flush();
+  Hl.triangularView<Eigen::Upper>() = Hl.transpose();
+  ev.H.topLeftCorner(nf, nf) += Hl.topLeftCorner(nf, nf);
+  ev.g.head(nf) += gl.head(nf);
+  if (pr_.estimate_x0) {
+    const int off = nf + static_cast<int>(ri) * n;
+    ev.H.block(off, off, n, n) += Hl.bottomRightCorner(n, n);
+    ev.H.block(0, off, nf, n) += Hl.topRightCorner(nf, n);
+    ev.H.block(off, 0, n, nf) += Hl.bottomLeftCorner(n, nf);
+    ev.g.segment(off, n) += gl.tail(n);
   }
+}
+
+std::size_t OutputErrorEvaluator::run_residuals(std::size_t ri, const Eigen::VectorXd& u, double* residuals,
+                                                double* d_params, double* d_x0) {
+  const bool with_jacobian = d_params != nullptr || d_x0 != nullptr;
+  apply(u);
+  build_keys(with_jacobian);
+  const int n = pr_.n(), nf = pr_.nf();
+  std::size_t row = 0;
+  simulate_run(ri, with_jacobian, [&](std::size_t, double r, const auto& dp, const auto& dx) {
+    if (residuals) residuals[row] = r;
+    if (d_params) Eigen::Map<Eigen::RowVectorXd>(d_params + row * static_cast<std::size_t>(nf), nf) = dp;
+    if (d_x0) Eigen::Map<Eigen::RowVectorXd>(d_x0 + row * static_cast<std::size_t>(n), n) = dx;
+    ++row;
+  });
+  return row;
 }
 
 void OutputErrorEvaluator::gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const {

@@ -76,6 +76,11 @@ class OutputErrorEvaluator {
   Evaluation evaluate(const Eigen::VectorXd& u, bool with_jacobian);
   // Writes u into the problem's parameter values and initial states.
   void apply(const Eigen::VectorXd& u);
+  // For solvers that take the Jacobian itself: sets u, then writes the residuals of run `ri` (its
+  // measured cells in row order) and, for the pointers given, their derivatives row-major,
+  // count x nf with respect to the transformed free parameters and count x n with respect to the
+  // run's initial state. Returns the count. The gauge residual is not included.
+  std::size_t run_residuals(std::size_t ri, const Eigen::VectorXd& u, double* residuals, double* d_params, double* d_x0);
 
   static constexpr double kGaugeWeight = 1e4;
 
@@ -87,6 +92,11 @@ class OutputErrorEvaluator {
     Eigen::MatrixXd ddrive;       // n x nf
     Eigen::MatrixXd damb;         // n x nf
   };
+  // Simulates run ri with its forward sensitivities; calls sink(row within the run, residual,
+  // d residual / d params (1 x nf), d residual / d x0 (1 x n)) for every measured cell (the
+  // derivatives only meaningful when with_jacobian).
+  template <class Sink>
+  void simulate_run(std::size_t ri, bool with_jacobian, Sink&& sink) const;
   void evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const;
   // Scale gauge as a stiff residual on log(sum C).
   void gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const;
