@@ -9,7 +9,7 @@ cd "$(dirname "$0")"
 # Debian 12 packages the build, the tests and the demo need.
 PACKAGES=(cmake ninja-build g++ make pkg-config git
           gcc-avr avr-libc binutils-avr avrdude simavr libsimavr-dev libelf-dev
-          libeigen3-dev libceres-dev libgtest-dev libgmock-dev libbenchmark-dev
+          libeigen3-dev libgtest-dev libgmock-dev libbenchmark-dev
           libusb-1.0-0-dev libbluetooth-dev nlohmann-json3-dev libcli11-dev libfmt-dev
           libcairo2-dev clang libclang-rt-14-dev)
 

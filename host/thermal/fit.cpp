@@ -4,7 +4,6 @@
 // (which column measures which node) and fit_uncertainty (covariance and identifiability).
 #include "fit.hpp"
 
-#include "fit_ceres.hpp"
 #include "fit_levenberg_marquardt.hpp"
 #include "fit_output_error.hpp"
 #include "fit_starts.hpp"
@@ -186,15 +185,7 @@ class FitPipeline {
     lm.max_iterations = opts_.max_iterations;
     lm.relative_tolerance = opts_.relative_tolerance;
     lm.restarts = final_stage ? 4 : 0;
-    LmOutcome o;
-    if (opts_.solver == FitSolver::Ceres) {
-      CeresOutcome c = ceres_levenberg_marquardt(pr, lm, final_stage);
-      o = std::move(c.lm);
-      if (c.covariance_ok) ceres_cov_z_ = c.covariance_z;
-      say(name + ": ceres " + std::to_string(c.jacobian_evaluations) + " Jacobians, " + std::to_string(c.residual_evaluations) + " residual evaluations");
-    } else {
-      o = levenberg_marquardt(pr, lm);
-    }
+    LmOutcome o = levenberg_marquardt(pr, lm);
     StageSummary st;
     st.name = name;
     st.iterations = o.iterations;
@@ -349,7 +340,7 @@ class FitPipeline {
     res_.residual_count = fin.ev.count;
     res_.rms_K = fin.ev.count ? std::sqrt(fin.ev.ssr / static_cast<double>(fin.ev.count)) : 0.0;
     res_.free_parameter_count = pr.nf();
-    estimate_uncertainty(net_, held_, pr, fin, opts_, res_, ceres_cov_z_.size() ? &ceres_cov_z_ : nullptr);
+    estimate_uncertainty(net_, held_, pr, fin, opts_, res_);
     for (std::size_t r = 0; r < recs_.size(); ++r)
       res_.residuals_K.push_back(prediction_residuals(net_, res_.params, recs_[r], res_.initial_states[r], extra_of(r)));
     if (!res_.converged) res_.warnings.push_back("the final stage stopped at the iteration limit before converging");
@@ -369,7 +360,6 @@ class FitPipeline {
   std::vector<Run> whole_;                     // one run per recording
   std::vector<Eigen::VectorXd> x0_whole_;      // per recording, degC per node
   std::vector<int> free_all_, free_cool_, free_op_only_;
-  Eigen::MatrixXd ceres_cov_z_;
 };
 
 }  // namespace

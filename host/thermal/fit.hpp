@@ -46,10 +46,7 @@ enum class InitialState {
   FirstSamples,   // measured first row; unmeasured nodes = ambient + mean measured rise
 };
 
-enum class FitSolver { HandWritten, Ceres };  // which Levenberg-Marquardt solves the output-error stages
-
 struct FitOptions {
-  FitSolver solver = FitSolver::HandWritten;
   double sum_capacitance_J_per_K = std::numeric_limits<double>::quiet_NaN();  // gauge override, J/K
   InitialState initial_state = InitialState::Estimate;
   bool staged = true;                 // the cooling-first pipeline above; false = joint fit only

@@ -165,22 +165,6 @@ void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int 
   }
 }
 
-std::size_t OutputErrorEvaluator::run_residuals(std::size_t ri, const Eigen::VectorXd& u, double* residuals,
-                                                double* d_params, double* d_x0) {
-  const bool with_jacobian = d_params != nullptr || d_x0 != nullptr;
-  apply(u);
-  build_keys(with_jacobian);
-  const int n = pr_.n(), nf = pr_.nf();
-  std::size_t row = 0;
-  simulate_run(ri, with_jacobian, [&](std::size_t, double r, const auto& dp, const auto& dx) {
-    if (residuals) residuals[row] = r;
-    if (d_params) Eigen::Map<Eigen::RowVectorXd>(d_params + row * static_cast<std::size_t>(nf), nf) = dp;
-    if (d_x0) Eigen::Map<Eigen::RowVectorXd>(d_x0 + row * static_cast<std::size_t>(n), n) = dx;
-    ++row;
-  });
-  return row;
-}
-
 void OutputErrorEvaluator::gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const {
   const int nf = pr_.nf();
   const int nu = pr_.unknowns();

@@ -76,12 +76,6 @@ class OutputErrorEvaluator {
   Evaluation evaluate(const Eigen::VectorXd& u, bool with_jacobian);
   // Writes u into the problem's parameter values and initial states.
   void apply(const Eigen::VectorXd& u);
-  // For solvers that take the Jacobian itself: sets u, then writes the residuals of run `ri` (its
-  // measured cells in row order) and, for the pointers given, their derivatives row-major,
-  // count x nf with respect to the transformed free parameters and count x n with respect to the
-  // run's initial state. Returns the count. The gauge residual is not included.
-  std::size_t run_residuals(std::size_t ri, const Eigen::VectorXd& u, double* residuals, double* d_params, double* d_x0);
-
   static constexpr double kGaugeWeight = 1e4;
 
  private:

@@ -12,8 +12,7 @@
 namespace btsm::thermal::fitting {
 
 void estimate_uncertainty(const Network& net, const std::vector<bool>& held, const OutputErrorProblem& pr,
-                          const LmOutcome& fin, const FitOptions& opts, FitResult& res,
-                          const Eigen::MatrixXd* external_cov_z) {
+                          const LmOutcome& fin, const FitOptions& opts, FitResult& res) {
   const int np = net.param_count();
   const int nu = pr.unknowns();
   const double dof = static_cast<double>(fin.ev.count) - nu;
@@ -30,9 +29,8 @@ void estimate_uncertainty(const Network& net, const std::vector<bool>& held, con
   res.condition_number = lam.minCoeff() > 0 ? lmax / lam.minCoeff() : std::numeric_limits<double>::infinity();
   Eigen::VectorXd lam_inv(nu);
   for (int i = 0; i < nu; ++i) lam_inv[i] = lam[i] > 1e-14 * lmax ? 1.0 / lam[i] : 0.0;
-  Eigen::MatrixXd cov_z = dsc.asDiagonal() * (es.eigenvectors() * lam_inv.asDiagonal() * es.eigenvectors().transpose()) *
-                          dsc.asDiagonal() * s2;
-  if (external_cov_z) cov_z.topLeftCorner(pr.nf(), pr.nf()) = *external_cov_z * s2;
+  const Eigen::MatrixXd cov_z = dsc.asDiagonal() * (es.eigenvectors() * lam_inv.asDiagonal() * es.eigenvectors().transpose()) *
+                                dsc.asDiagonal() * s2;
   res.covariance = Eigen::MatrixXd::Zero(np, np);
   Eigen::VectorXd dpdz(pr.nf());
   for (int j = 0; j < pr.nf(); ++j) dpdz[j] = pr.tf[static_cast<std::size_t>(j)].dp_dz(fin.u[j]);

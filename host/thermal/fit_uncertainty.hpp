@@ -12,7 +12,6 @@ namespace btsm::thermal::fitting {
 // Fills res.residual_sigma_K, res.condition_number, res.covariance, res.estimates and the
 // identifiability warnings from the final stage `fin` of problem `pr` (res.params already set).
 void estimate_uncertainty(const Network& net, const std::vector<bool>& held, const OutputErrorProblem& pr,
-                          const LmOutcome& fin, const FitOptions& opts, FitResult& res,
-                          const Eigen::MatrixXd* external_cov_z = nullptr);  // unit-variance covariance of the free parameters (z) from elsewhere
+                          const LmOutcome& fin, const FitOptions& opts, FitResult& res);
 
 }  // namespace btsm::thermal::fitting
