@@ -7,7 +7,9 @@
 #include <fmt/core.h>
 #include <unistd.h>
 
+#include <algorithm>
 #include <chrono>
+#include <ctime>
 #include <iostream>
 #include <memory>
 
@@ -26,16 +28,57 @@ struct MonitorArgs {
   double reconnect = 30;
 };
 
+// Host wall-clock time of day, "12:03:05" (what a technician compares with the machine's clock).
+std::string clock_text(std::chrono::system_clock::time_point t, bool with_date = false) {
+  const std::time_t tt = std::chrono::system_clock::to_time_t(t);
+  std::tm tm{};
+  ::localtime_r(&tt, &tm);
+  char buf[32];
+  std::strftime(buf, sizeof buf, with_date ? "%Y-%m-%dT%H:%M:%S" : "%H:%M:%S", &tm);
+  return buf;
+}
+
+void monitor_note(const std::string& what) {
+  std::cerr << "monitor: " << clock_text(std::chrono::system_clock::now()) << " " << what << std::endl;
+}
+
 void print_monitor_event(const MonitorArgs& a, const ModuleIdentity& id, const SampleEvent& ev) {
+  const auto now = std::chrono::system_clock::now();
   if (a.json) {
-    std::cout << sample_json(ev.sample, &ev).dump() << std::endl;
+    json j = sample_json(ev.sample, &ev);
+    j["host_time"] = clock_text(now, true);
+    std::cout << j.dump() << std::endl;
     return;
   }
-  if (ev.restarted) std::cerr << "monitor: module restarted (sample index went back)\n";
-  if (ev.gap)
-    std::cerr << fmt::format("monitor: {} sample(s) lost ({}-{})\n", ev.gap->count(), ev.gap->first, ev.gap->last);
-  std::cout << format_sample_line(ev.sample, id.roles) << std::endl;
+  if (ev.restarted) monitor_note("module restarted (sample index went back)");
+  if (ev.gap) monitor_note(fmt::format("{} sample(s) lost ({}-{})", ev.gap->count(), ev.gap->first, ev.gap->last));
+  // Host time of day, then the module's own time since it started (s).
+  std::cout << fmt::format("{} t={:<9.1f} {}", clock_text(now), ev.sample.time_ms / 1000.0,
+                           format_sample_line(ev.sample, id.roles))
+            << std::endl;
 }
+
+// When to say the stream went quiet: one expected sample interval (measured on the host, or the
+// module's sample_period_ms before two samples arrived) plus the reply timeout.
+struct SilenceWatch {
+  double declared_period_s = 5.0;
+  double mean_interval_s = -1;  // host-side, exponential mean; < 0 = not measured yet
+  std::chrono::steady_clock::time_point last_rx = std::chrono::steady_clock::now();
+  bool noted = false;
+
+  double expected_period_s() const { return mean_interval_s > 0 ? mean_interval_s : declared_period_s; }
+  void sample_arrived(bool after_a_break) {
+    const auto now = std::chrono::steady_clock::now();
+    const double dt = std::chrono::duration<double>(now - last_rx).count();
+    if (!after_a_break && !noted) mean_interval_s = mean_interval_s < 0 ? dt : 0.8 * mean_interval_s + 0.2 * dt;
+    if (noted) monitor_note(fmt::format("samples again after {:.1f} s", dt));
+    noted = false;
+    last_rx = now;
+  }
+  double silent_s() const {
+    return std::chrono::duration<double>(std::chrono::steady_clock::now() - last_rx).count();
+  }
+};
 
 void run_monitor(const MonitorArgs& a) {
   install_interrupt_handler();
@@ -44,16 +87,40 @@ void run_monitor(const MonitorArgs& a) {
   if (!a.json)
     std::cerr << fmt::format("monitor: module {} firmware {} via {}; {}\n", device_id_text(id.info.device_id),
                              firmware_version(id.info), id.link, id.roles.describe());
+  SilenceWatch watch;
+  try {
+    watch.declared_period_s =
+        conn.session->get_config(static_cast<uint8_t>(wire::ConfigKey::SamplePeriodMs)).value / 1000.0;
+  } catch (const NackError&) {
+    // older firmware without GET_CONFIG: keep the default
+  }
+  // A module that sends every 10 min is not lost after a minute.
+  const double give_up_s = std::max(60.0, 3 * watch.declared_period_s + 10);
+  LinkLossNotes notes;
+  bool link_broke = false;
+  notes.lost = [&](const std::string& reason, double reconnect_s) {
+    link_broke = true;
+    monitor_note(fmt::format("link lost ({}); reconnecting for up to {:.0f} s", reason, reconnect_s));
+  };
+  notes.back = [](double after_s) { monitor_note(fmt::format("link back after {:.1f} s", after_s)); };
   uint64_t shown = 0, reconnects = 0;
-  auto last_rx = std::chrono::steady_clock::now();
   while (!g_link_stop && (a.count == 0 || shown < a.count)) {
-    auto ev = next_sample_with_reconnect(*conn.session, Millis(250), a.reconnect, reconnects, &g_link_stop);
+    auto ev = next_sample_with_reconnect(*conn.session, Millis(100), a.reconnect, reconnects, &g_link_stop, &notes);
     if (!ev) {
-      if (std::chrono::steady_clock::now() - last_rx > std::chrono::seconds(60))
-        throw LinkError(LinkErrorKind::kTimeout, conn.transport->describe() + ": no sample for 60 s");
+      const double silent = watch.silent_s();
+      if (!watch.noted && silent > watch.expected_period_s() + a.link.timeout_s) {
+        watch.noted = true;
+        monitor_note(fmt::format("no sample for {:.1f} s (one expected every {:.3g} s): link lost or module stopped; "
+                                 "waiting up to {:.0f} s",
+                                 silent, watch.expected_period_s(), give_up_s));
+      }
+      if (silent > give_up_s)
+        throw LinkError(LinkErrorKind::kTimeout,
+                        fmt::format("{}: no sample for {:.0f} s", conn.transport->describe(), give_up_s));
       continue;
     }
-    last_rx = std::chrono::steady_clock::now();
+    watch.sample_arrived(link_broke || ev->gap.has_value() || ev->restarted);
+    link_broke = false;
     print_monitor_event(a, id, *ev);
     ++shown;
   }
@@ -63,10 +130,13 @@ void register_monitor(CLI::App& app) {
   auto a = std::make_shared<MonitorArgs>();
   auto* c = app.add_subcommand("monitor", "Live view of temperatures, predictions and diagnosis, one line per sample");
   c->footer(
-      "Each line: sample index, speed, then per channel the measured temperature (degC), the model's\n"
-      "prediction when a model is active, and the diagnosis when not NORMAL (WARN, ALARM, SENSOR_FAULT\n"
-      "with fault bits open/short/adc/ref); last the overall state. Lost samples are reported on\n"
-      "stderr, never filled in. Ctrl-C or --count ends it. --json prints one JSON object per line.");
+      "Each line: host time of day, the module's time since it started (t=, s), sample index, speed,\n"
+      "then per channel the measured temperature (°C), the model's prediction when a model is active,\n"
+      "and the diagnosis when not NORMAL (WARN, ALARM, SENSOR_FAULT with fault bits open/short/adc/ref);\n"
+      "last the overall state. Lost samples are reported on stderr, never filled in. A lost link is\n"
+      "said at once on stderr ('link lost (...); reconnecting for up to N s', then 'link back'), a\n"
+      "silent one after one sample interval plus --timeout. Ctrl-C or --count ends it. --json prints\n"
+      "one JSON object per line (with host_time).");
   add_link_options(*c, a->link);
   c->add_flag("--json", a->json, "one JSON object per sample (NDJSON)");
   c->add_option("--count", a->count, "stop after N samples (0 = until Ctrl-C)")->capture_default_str();
@@ -115,6 +185,11 @@ void run_record(const RecordArgs& a) {
     if (tty) std::cerr << "\r" << line << std::flush;
     else if (p.rows % 100 == 0) std::cerr << line << "\n";
   };
+  ro.link_notes.lost = [&](const std::string& reason, double reconnect_s) {
+    std::cerr << (tty ? "\n" : "")
+              << fmt::format("record: link lost ({}); reconnecting for up to {:.0f} s\n", reason, reconnect_s);
+  };
+  ro.link_notes.back = [](double after_s) { std::cerr << fmt::format("record: link back after {:.1f} s\n", after_s); };
   const RecordSummary s = record(*conn.session, id, ro);
   if (tty) std::cerr << "\n";
   print_record_summary(a, s);

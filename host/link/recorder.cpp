@@ -56,13 +56,16 @@ ModuleIdentity identify(Session& session) {
 }
 
 std::optional<SampleEvent> next_sample_with_reconnect(Session& session, Millis timeout, double reconnect_s,
-                                                      uint64_t& reconnects, const std::atomic<bool>* stop) {
+                                                      uint64_t& reconnects, const std::atomic<bool>* stop,
+                                                      const LinkLossNotes* notes) {
   try {
     return session.next_sample(timeout);
   } catch (const LinkError& e) {
     if (e.kind() != LinkErrorKind::kDeviceGone || reconnect_s <= 0) throw;
-    const auto give_up = std::chrono::steady_clock::now() + std::chrono::duration<double>(reconnect_s);
+    const auto lost_at = std::chrono::steady_clock::now();
+    const auto give_up = lost_at + std::chrono::duration<double>(reconnect_s);
     std::string last = e.what();
+    if (notes && notes->lost) notes->lost(last, reconnect_s);
     while (std::chrono::steady_clock::now() < give_up) {
       if (stop && stop->load()) return std::nullopt;
       std::this_thread::sleep_for(Millis(500));
@@ -70,6 +73,8 @@ std::optional<SampleEvent> next_sample_with_reconnect(Session& session, Millis t
         session.transport().reopen();
         session.resync();
         ++reconnects;
+        if (notes && notes->back)
+          notes->back(std::chrono::duration<double>(std::chrono::steady_clock::now() - lost_at).count());
         return std::nullopt;  // the caller loops; the tracker reports what was lost meanwhile
       } catch (const LinkError& again) {
         last = again.what();
@@ -159,7 +164,8 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
         sum.stop_reason = "duration reached";
         break;
       }
-      auto ev = next_sample_with_reconnect(session, Millis(250), opts.reconnect_s, sum.reconnects, opts.stop);
+      auto ev = next_sample_with_reconnect(session, Millis(250), opts.reconnect_s, sum.reconnects, opts.stop,
+                                           &opts.link_notes);
       const auto now = std::chrono::steady_clock::now();
       if (!ev) {
         if (std::chrono::duration<double>(now - last_rx).count() > sample_timeout_s)

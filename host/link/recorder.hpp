@@ -39,6 +39,14 @@ struct ModuleIdentity {
 ModuleIdentity identify(Session& session);
 std::string firmware_version(const wire::Info& info);
 
+// What a live view says about a lost link: `lost` at once when the transport reports the
+// device gone (the reason, and for how long reopening will be tried), `back` when a reopen
+// succeeded (after how many seconds).
+struct LinkLossNotes {
+  std::function<void(const std::string& reason, double reconnect_s)> lost;
+  std::function<void(double after_s)> back;
+};
+
 struct RecordProgress {
   uint64_t rows = 0, lost = 0, restarts = 0;
   double elapsed_s = 0;        // host wall-clock time since the recording started, s
@@ -53,6 +61,7 @@ struct RecordOptions {
   double sample_timeout_s = 0; // give up when no sample arrives for this long (0 = 3 x period + 10 s)
   double reconnect_s = 30;     // keep reopening a vanished link for this long, s (0 = fail at once)
   std::function<void(const RecordProgress&)> progress;
+  LinkLossNotes link_notes;    // told at once when the link is lost and when it is back
   const std::atomic<bool>* stop = nullptr;  // set from a signal handler to end cleanly
   std::string source_label = "btsm record";
 };
@@ -69,7 +78,8 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
 // Waits for a sample, reopening the transport after a disconnect (for up to reconnect_s).
 // Returns nullopt on timeout. `reconnects` counts successful reopens.
 std::optional<SampleEvent> next_sample_with_reconnect(Session& session, Millis timeout, double reconnect_s,
-                                                      uint64_t& reconnects, const std::atomic<bool>* stop);
+                                                      uint64_t& reconnects, const std::atomic<bool>* stop,
+                                                      const LinkLossNotes* notes = nullptr);
 
 // One text line for `btsm monitor`: index, speed, per channel measured/predicted/state, overall.
 std::string format_sample_line(const wire::Sample& s, const ChannelRoles& roles);

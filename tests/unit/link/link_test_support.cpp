@@ -22,6 +22,10 @@ PtyPair::PtyPair() {
   ::tcsetattr(slave, TCSANOW, &t);
   path = name;
   ::fcntl(master, F_SETFL, ::fcntl(master, F_GETFL) | O_NONBLOCK);
+  // A `btsm` run as a child process must not inherit either end: a master held open there
+  // would keep the link "up" after the fake module closed it.
+  ::fcntl(master, F_SETFD, FD_CLOEXEC);
+  ::fcntl(slave, F_SETFD, FD_CLOEXEC);
 }
 
 PtyPair::~PtyPair() {

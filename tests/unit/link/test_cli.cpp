@@ -17,6 +17,9 @@
 #include <filesystem>
 #include <fstream>
 #include <sstream>
+#include <thread>
+#include <chrono>
+#include <cctype>
 
 using namespace btsm;
 using btsm::test::FakeModule;
@@ -216,4 +219,94 @@ TEST(LinkCli, ScanSaysListeningOnlyWhenAnAdapterScans) {
   } else {
     EXPECT_NE(r.err.find("listening for 0.5 s on hci"), std::string::npos) << r.err;
   }
+}
+
+namespace {
+
+// Runs the CLI on a thread; the test watches its stderr file while it runs.
+struct Background {
+  test::TempDir& home;
+  Result result;
+  std::thread thread;
+  Background(test::TempDir& h, const std::string& args) : home(h) {
+    thread = std::thread([this, args] { result = run(home, args); });
+  }
+  ~Background() {
+    if (thread.joinable()) thread.join();
+  }
+  std::string err() const { return slurp(home.path + "/stderr.txt"); }
+  std::string out() const { return slurp(home.path + "/stdout.txt"); }
+  // Seconds until `text` appears on stderr, or a negative value after `limit_s`.
+  double seconds_until(const std::string& text, double limit_s) const {
+    const auto t0 = std::chrono::steady_clock::now();
+    for (;;) {
+      const double dt = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+      if (err().find(text) != std::string::npos) return dt;
+      if (dt > limit_s) return -1;
+      std::this_thread::sleep_for(std::chrono::milliseconds(10));
+    }
+  }
+  Result finish() {
+    thread.join();
+    return result;
+  }
+};
+
+bool wait_for_samples(const FakeModule& m, uint32_t n, double limit_s) {
+  const auto until = std::chrono::steady_clock::now() + std::chrono::duration<double>(limit_s);
+  while (m.samples_sent() < n) {
+    if (std::chrono::steady_clock::now() > until) return false;
+    std::this_thread::sleep_for(std::chrono::milliseconds(5));
+  }
+  return true;
+}
+
+}  // namespace
+
+TEST(LinkCli, MonitorLinesCarryTheTimeAndALostLinkIsSaidAtOnce) {
+  test::TempDir home;
+  test::FakeModuleOptions o;
+  o.sample_period = std::chrono::milliseconds(20);
+  ModuleOnPty m(o);
+  Background mon(home, "monitor --port " + m.pty.path + " --timeout 1 --reconnect 2");
+  ASSERT_GT(mon.seconds_until("monitor: module", 10), -1) << mon.err();
+  const uint32_t before = m.module.samples_sent();
+  ASSERT_TRUE(wait_for_samples(m.module, before + 10, 5));
+  m.module.replace_fd(-1);  // the module's end of the link closes (BLE drop, cable pulled)
+  const double said_after = mon.seconds_until("link lost", 5);
+  ASSERT_GE(said_after, 0) << mon.err();
+  EXPECT_LT(said_after, 1.0) << "the lost link must be said within the reply timeout";
+  EXPECT_NE(mon.err().find("reconnecting for up to 2 s"), std::string::npos) << mon.err();
+  const Result r = mon.finish();
+  EXPECT_EQ(r.code, 3) << r.err;  // not back within --reconnect
+  // Every sample line starts with the host's time of day and the module's time.
+  std::istringstream lines(r.out);
+  std::string line;
+  int n = 0;
+  while (std::getline(lines, line)) {
+    ++n;
+    ASSERT_GE(line.size(), 12u);
+    EXPECT_TRUE(std::isdigit(line[0]) && std::isdigit(line[1]) && line[2] == ':' && line[5] == ':' && line[8] == ' ')
+        << line;
+    EXPECT_EQ(line.substr(9, 2), "t=") << line;
+  }
+  EXPECT_GE(n, 10);
+}
+
+TEST(LinkCli, MonitorSaysWhenTheStreamGoesSilentAndWhenItIsBack) {
+  test::TempDir home;
+  test::FakeModuleOptions o;
+  o.sample_period = std::chrono::milliseconds(20);
+  ModuleOnPty m(o);
+  Background mon(home, "monitor --port " + m.pty.path + " --timeout 0.5 --count 120");
+  ASSERT_GT(mon.seconds_until("monitor: module", 10), -1) << mon.err();
+  ASSERT_TRUE(wait_for_samples(m.module, m.module.samples_sent() + 20, 5));
+  m.module.set_streaming(false);  // silent link: no disconnect, no data
+  const double said_after = mon.seconds_until("no sample for", 5);
+  ASSERT_GE(said_after, 0) << mon.err();
+  EXPECT_LT(said_after, 0.5 + 0.02 + 0.5) << "one interval plus the reply timeout (and polling slack)";
+  m.module.set_streaming(true);
+  EXPECT_GE(mon.seconds_until("samples again", 5), 0) << mon.err();
+  const Result r = mon.finish();
+  EXPECT_EQ(r.code, 0) << r.err;
 }
