@@ -1,4 +1,4 @@
-// btsm list | scan | info | monitor | record | set-speed | set-config | ack-alarm | flash-model |
+// btsm list | scan | info | monitor | record | set-speed | set-config | get-config | ack-alarm | flash-model |
 // flash-firmware | keys -- talking to a module. The logic lives in host/link/; the command groups
 // (cmd_link_<group>.cpp) parse options, print, and map errors onto exit codes
 // (cmd_link_support.hpp).

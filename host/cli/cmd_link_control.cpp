@@ -1,4 +1,4 @@
-// btsm set-speed | set-config | ack-alarm: single requests that change the module's state.
+// btsm set-speed | set-config | get-config | ack-alarm: single requests to the module.
 #include "cmd_link_support.hpp"
 #include "common/wire_messages.hpp"
 
@@ -7,6 +7,7 @@
 #include <climits>
 #include <iostream>
 #include <memory>
+#include <vector>
 
 namespace btsm::cli {
 namespace {
@@ -97,6 +98,13 @@ int32_t parse_config_value(uint8_t key, const std::string& text) {
                                                                                : ""));
 }
 
+// What a value means: a role name for the channel role keys, else the number.
+std::string config_value_text(uint8_t key, int32_t value) {
+  if (key >= wire::kChannelRoleKeyFirst && key <= wire::kChannelRoleKeyLast && value >= 0 && value < 256)
+    if (const char* n = wire::channel_role_name(static_cast<uint8_t>(value))) return n;
+  return std::to_string(value);
+}
+
 void run_set_config(const SetConfigArgs& a) {
   const uint8_t key = parse_config_key(a.key);
   const int32_t value = parse_config_value(key, a.value);
@@ -107,7 +115,7 @@ void run_set_config(const SetConfigArgs& a) {
                        fmt::format("{} = {} is outside [{}, {}]", wire::config_key_name(key), value, r.min, r.max));
   auto conn = connect(a.link);
   conn.session->set_config(key, value);
-  std::cerr << fmt::format("set-config: {} = {} acknowledged\n", wire::config_key_name(key), value);
+  std::cerr << fmt::format("set-config: {} = {} acknowledged\n", wire::config_key_name(key), config_value_text(key, value));
 }
 
 // One line per key with its range and default, for the help footer.
@@ -134,6 +142,51 @@ void register_set_config(CLI::App& app) {
   c->callback([a] { guarded([&] { run_set_config(*a); }); });
 }
 
+// --- get-config ----------------------------------------------------------------------------------
+
+struct GetConfigArgs {
+  LinkOptions link;
+  std::vector<std::string> keys;
+  bool json = false;
+};
+
+void run_get_config(const GetConfigArgs& a) {
+  std::vector<uint8_t> keys;
+  for (const auto& k : a.keys) keys.push_back(parse_config_key(k));
+  if (keys.empty())
+    for (int k = 0; k < 256; ++k) {
+      wire::ConfigRange r{};
+      if (wire::config_key_name(static_cast<uint8_t>(k)) && wire::config_key_range(static_cast<uint8_t>(k), r))
+        keys.push_back(static_cast<uint8_t>(k));
+    }
+  auto conn = connect(a.link);
+  nlohmann::json j = nlohmann::json::object();
+  for (uint8_t key : keys) {
+    const wire::ConfigValue v = conn.session->get_config(key);
+    if (v.key != key)
+      throw CommandError(kExitFailure, fmt::format("asked for {} and the module answered key {}",
+                                                   wire::config_key_name(key), v.key));
+    const std::string text = config_value_text(key, v.value);
+    if (a.json) {
+      j[wire::config_key_name(key)] = text == std::to_string(v.value) ? nlohmann::json(v.value) : nlohmann::json(text);
+    } else {
+      std::cout << fmt::format("{:<22} {}\n", wire::config_key_name(key), text);
+    }
+  }
+  if (a.json) print_json(j);
+}
+
+void register_get_config(CLI::App& app) {
+  auto a = std::make_shared<GetConfigArgs>();
+  auto* c = app.add_subcommand("get-config", "Read module configuration values (GET_CONFIG), all keys or the ones named");
+  c->footer("One line per key: name and value (channel roles by name). Keys and ranges: `btsm set-config --help`.\n"
+            "  btsm get-config --port /dev/ttyACM0\n  btsm get-config --port /dev/ttyACM0 sample_period_ms channel_role_5");
+  add_link_options(*c, a->link);
+  c->add_option("key", a->keys, "configuration key names (or numbers); none = every key");
+  c->add_flag("--json", a->json, "print {key: value} as JSON");
+  c->callback([a] { guarded([&] { run_get_config(*a); }); });
+}
+
 // --- ack-alarm -----------------------------------------------------------------------------------
 
 void run_ack_alarm(const LinkOptions& link) {
@@ -154,6 +207,7 @@ void register_ack_alarm(CLI::App& app) {
 void register_link_control_commands(CLI::App& app) {
   register_set_speed(app);
   register_set_config(app);
+  register_get_config(app);
   register_ack_alarm(app);
 }
 

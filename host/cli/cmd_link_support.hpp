@@ -60,7 +60,7 @@ uint32_t parse_device_id_or_throw(const std::string& text);
 // The per-group registration functions; register_link_commands() calls them all.
 void register_link_discovery_commands(CLI::App& app);  // list scan info
 void register_link_live_commands(CLI::App& app);       // monitor record
-void register_link_control_commands(CLI::App& app);    // set-speed set-config ack-alarm
+void register_link_control_commands(CLI::App& app);    // set-speed set-config get-config ack-alarm
 void register_link_model_commands(CLI::App& app);      // flash-model
 void register_link_firmware_commands(CLI::App& app);   // flash-firmware keys
 

@@ -4,7 +4,7 @@
 
 namespace btsm::cli {
 void register_rtd_commands(CLI::App& app);       // btsm rtd r2t|t2r
-void register_link_commands(CLI::App& app);      // list scan info monitor record set-speed ack-alarm flash-model flash-firmware keys
+void register_link_commands(CLI::App& app);      // list scan info monitor record set-speed set-config get-config ack-alarm flash-model flash-firmware keys
 void register_sysid_commands(CLI::App& app);     // fit validate reduce
 void register_heat_commands(CLI::App& app);      // heat
 void register_residual_commands(CLI::App& app);  // residual

@@ -3,6 +3,7 @@
 #include "fake_module.hpp"
 #include "firmware/device_key.hpp"
 #include "host/link/firmware_image.hpp"
+#include "host/sim/runner/sim_module.hpp"
 #include "host/thermal/recording.hpp"
 #include "link_test_support.hpp"
 
@@ -19,6 +20,7 @@
 #include <sstream>
 #include <thread>
 #include <chrono>
+#include <algorithm>
 #include <cctype>
 
 using namespace btsm;
@@ -61,7 +63,7 @@ struct ModuleOnPty {
 
 TEST(LinkCli, EveryCommandHasHelp) {
   test::TempDir home;
-  for (const char* c : {"list", "scan", "info", "monitor", "record", "set-speed", "set-config", "ack-alarm",
+  for (const char* c : {"list", "scan", "info", "monitor", "record", "set-speed", "set-config", "get-config", "ack-alarm",
                         "flash-model", "flash-firmware", "keys"}) {
     const Result r = run(home, std::string(c) + " --help");
     EXPECT_EQ(r.code, 0) << c << r.err;
@@ -309,4 +311,32 @@ TEST(LinkCli, MonitorSaysWhenTheStreamGoesSilentAndWhenItIsBack) {
   EXPECT_GE(mon.seconds_until("samples again", 5), 0) << mon.err();
   const Result r = mon.finish();
   EXPECT_EQ(r.code, 0) << r.err;
+}
+
+TEST(LinkCli, GetConfigReadsWhatSetConfigWroteOnTheSimulatedModule) {
+  test::TempDir home;
+  sim::SimModuleOptions o;
+  o.pty_path = home.path + "/btsm-sim";
+  o.plant.speed = sim::SpeedProfile::parse("1h@6000");
+  sim::SimModule sim(o);
+  sim.start();
+  const std::string port = " --port " + o.pty_path;
+  Result r = run(home, "get-config" + port);
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("sample_period_ms       5000\n"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("channel_role_5         spare\n"), std::string::npos) << r.out;
+  EXPECT_EQ(std::count(r.out.begin(), r.out.end(), '\n'), 12) << r.out;  // every key the protocol names
+  ASSERT_EQ(run(home, "set-config" + port + " channel_role_5 shaft").code, 0);
+  ASSERT_EQ(run(home, "set-config" + port + " sample_period_ms 2000").code, 0);
+  r = run(home, "get-config --json" + port + " channel_role_5 sample_period_ms");
+  ASSERT_EQ(r.code, 0) << r.err;
+  const auto j = nlohmann::json::parse(r.out);
+  EXPECT_EQ(j["channel_role_5"], "shaft");
+  EXPECT_EQ(j["sample_period_ms"], 2000);
+  EXPECT_EQ(j.size(), 2u);
+  r = run(home, "get-config" + port + " no_such_key");
+  EXPECT_EQ(r.code, 2);
+  EXPECT_NE(r.err.find("no_such_key"), std::string::npos) << r.err;
+  sim.stop();
+  EXPECT_TRUE(sim.error().empty()) << sim.error();
 }
