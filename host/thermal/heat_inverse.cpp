@@ -13,6 +13,7 @@
 #include <cmath>
 #include <limits>
 #include <map>
+#include <tuple>
 #include <random>
 #include <stdexcept>
 
@@ -25,6 +26,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
 struct DiscreteStep {
   Eigen::MatrixXd A, B;
   Eigen::VectorXd a_amb, f;
+  Eigen::MatrixXd a_bnd;   // n x boundaries: the declared boundary columns' gains
 };
 
 // Everything the smoother needs, precomputed once per problem (independent of alpha).
@@ -58,6 +60,7 @@ DiscreteStep discretise(const NodeMatrices& mats, const std::vector<int>& src, d
     st.A = sm.Phi;
     st.B = sm.Gamma * S;
     st.a_amb = sm.ambient_gain;
+    st.a_bnd = sm.boundary_gain;
     st.f = sm.Gamma * q_model;
   } else {
     // Crank-Nicolson on the whole balance (conduction, ambient links and sources):
@@ -68,6 +71,8 @@ DiscreteStep discretise(const NodeMatrices& mats, const std::vector<int>& src, d
     st.A = lu.solve(Cd - 0.5 * dt * mats.G);
     st.B = lu.solve(dt * S);
     st.a_amb = lu.solve(dt * mats.ambient_conductance);
+    st.a_bnd = mats.boundary_conductance.cols() > 0 ? Eigen::MatrixXd(lu.solve(dt * mats.boundary_conductance))
+                                                     : Eigen::MatrixXd(n, 0);
     st.f = lu.solve(dt * q_model);
   }
   return st;
@@ -79,10 +84,19 @@ Prepared prepare(const InverseProblem& p, const HeatInverseOptions& o) {
   if (pr.N < 3) throw std::invalid_argument("heat inverse: need at least 3 samples");
   if (p.measured.rows() != pr.N || p.speed_rpm.size() != p.time_s.size() || p.ambient_c.size() != p.time_s.size())
     throw std::invalid_argument("heat inverse: time, speed, ambient and measured rows differ in length");
-  if (!p.matrices) throw std::invalid_argument("heat inverse: no thermal matrices provider");
+  if (!p.matrices && !p.matrices_at) throw std::invalid_argument("heat inverse: no thermal matrices provider");
+  const bool events = !p.event_mask.empty();
+  if (events && p.event_mask.size() != p.time_s.size()) throw std::invalid_argument("heat inverse: event states and time differ in length");
+  if (events && !p.matrices_at) throw std::invalid_argument("heat inverse: event states need the matrices_at provider");
+  if (p.boundary_c.cols() > 0 && p.boundary_c.rows() != static_cast<Eigen::Index>(p.time_s.size()))
+    throw std::invalid_argument("heat inverse: boundary temperatures and time differ in length");
+  auto matrices = [&](double speed, unsigned mask) { return p.matrices_at ? p.matrices_at(speed, mask) : p.matrices(speed); };
   if (!(o.step_s > 0)) throw std::invalid_argument("heat inverse: --step must be > 0 s");
   if (p.source_nodes.empty()) throw std::invalid_argument("heat inverse: no source nodes selected");
-  const NodeMatrices m0 = p.matrices(p.speed_rpm[0]);
+  const NodeMatrices m0 = matrices(p.speed_rpm[0], events ? p.event_mask[0] : 0u);
+  if (m0.boundary_conductance.cols() != p.boundary_c.cols())
+    throw std::invalid_argument("heat inverse: the network has " + std::to_string(m0.boundary_conductance.cols()) +
+                                " boundary column(s), the problem gives " + std::to_string(p.boundary_c.cols()));
   pr.n = static_cast<int>(m0.capacitance.size());
   pr.m = static_cast<int>(p.source_nodes.size());
   pr.d = pr.n + pr.m;
@@ -93,8 +107,8 @@ Prepared prepare(const InverseProblem& p, const HeatInverseOptions& o) {
   pr.H = p.measure_map;
   pr.y = p.measured;
 
-  std::map<std::pair<double, double>, int> cache;
-  std::map<double, NodeMatrices> mats_cache;
+  std::map<std::tuple<double, unsigned, double>, int> cache;
+  std::map<std::pair<double, unsigned>, NodeMatrices> mats_cache;
   pr.step_of_interval.resize(pr.N - 1);
   pr.offset.resize(pr.n, pr.N - 1);
   std::map<long long, int> piece_ids;
@@ -106,17 +120,20 @@ Prepared prepare(const InverseProblem& p, const HeatInverseOptions& o) {
     if (!std::isfinite(p.speed_rpm[k]) || !std::isfinite(p.ambient_c[k]))
       throw std::invalid_argument("heat inverse: speed or ambient missing at sample " + std::to_string(k));
     const double dt_key = std::round(dt * 1e6) / 1e6;
-    const auto key = std::make_pair(p.speed_rpm[k], dt_key);
+    const unsigned mask = events ? p.event_mask[static_cast<std::size_t>(k)] : 0u;
+    const auto key = std::make_tuple(p.speed_rpm[k], mask, dt_key);
     auto it = cache.find(key);
     if (it == cache.end()) {
-      auto mit = mats_cache.find(p.speed_rpm[k]);
-      if (mit == mats_cache.end()) mit = mats_cache.emplace(p.speed_rpm[k], p.matrices(p.speed_rpm[k])).first;
+      const auto mkey = std::make_pair(p.speed_rpm[k], mask);
+      auto mit = mats_cache.find(mkey);
+      if (mit == mats_cache.end()) mit = mats_cache.emplace(mkey, matrices(p.speed_rpm[k], mask)).first;
       pr.steps.push_back(discretise(mit->second, p.source_nodes, dt, o.scheme, p.keep_model_sources));
       it = cache.emplace(key, static_cast<int>(pr.steps.size()) - 1).first;
     }
     pr.step_of_interval[k] = it->second;
     const DiscreteStep& st = pr.steps[it->second];
     pr.offset.col(k) = st.a_amb * p.ambient_c[k] + st.f;
+    if (p.boundary_c.cols() > 0) pr.offset.col(k) += st.a_bnd * p.boundary_c.row(k).transpose();
     const long long raw = static_cast<long long>(std::floor((p.time_s[k] - t0) / o.step_s + 1e-9));
     auto pit = piece_ids.find(raw);
     if (pit == piece_ids.end()) {
@@ -445,6 +462,12 @@ InverseProblem make_inverse_problem(const Network& net, const Eigen::VectorXd& p
   p.source_nodes = source_nodes;
   p.keep_model_sources = keep_model_sources;
   p.matrices = [net, params](double speed) { return assemble(net, params, speed); };
+  if (net.has_inputs()) {
+    const RecordingInputs in = recording_inputs(net, rec);
+    p.event_mask = in.event_mask;
+    p.boundary_c = in.boundary_c;
+    p.matrices_at = [net, params](double speed, unsigned mask) { return assemble(net, params, speed, mask); };
+  }
   // Prior mean of the initial state: first measured value per node, the mean of those elsewhere.
   Eigen::VectorXd x0 = Eigen::VectorXd::Constant(n, std::numeric_limits<double>::quiet_NaN());
   double sum = 0;

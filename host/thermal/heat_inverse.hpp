@@ -79,6 +79,12 @@ struct InverseProblem {
   std::vector<int> source_nodes;         // state indices receiving the unknown heat
   // Continuous matrices at a given speed (network.hpp assemble(); called once per distinct speed).
   std::function<NodeMatrices(double speed_rpm)> matrices;
+  // Declared inputs of the network (network.hpp boundaries/events), empty when it has none: the
+  // event state and boundary temperatures per sample, and the matrices per (speed, event state),
+  // used instead of `matrices` when set.
+  std::vector<unsigned> event_mask;
+  Eigen::MatrixXd boundary_c;            // N x boundaries [degC]
+  std::function<NodeMatrices(double speed_rpm, unsigned event_mask)> matrices_at;
   bool keep_model_sources = false;       // true: unknown heat is added to the model's own sources
   Eigen::VectorXd initial_state_c;       // prior mean of x_0 [degC] (size n_state)
 };

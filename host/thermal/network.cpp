@@ -47,7 +47,7 @@ std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, co
   for (std::size_t i = 0; i < arr.size(); ++i) {
     const std::string w = where + "[" + std::to_string(i) + "]";
     const json& t = arr[i];
-    check_keys(t, {"resistance", "conductance", "power", "speed_exponent"}, src, w);
+    check_keys(t, {"resistance", "conductance", "power", "speed_exponent", "event"}, src, w);
     Term term;
     int kinds = 0;
     std::string pname;
@@ -60,6 +60,12 @@ std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, co
     term.param = net.param_index(pname);
     if (term.param < 0) bad(src, w, "unknown parameter '" + pname + "' (declare it in 'parameters')");
     term.speed_exponent = get_number(t, "speed_exponent", 0.0, src, w);
+    if (t.contains("event")) {
+      const std::string ev = get_string(t, "event", src, w);
+      for (std::size_t k = 0; k < net.events.size(); ++k)
+        if (net.events[k] == ev) term.event = static_cast<int>(k);
+      if (term.event < 0) bad(src, w, "unknown event column '" + ev + "' (declare it in 'events')");
+    }
     out.push_back(term);
   }
   return out;
@@ -72,6 +78,7 @@ json terms_to_json(const Network& net, const std::vector<Term>& terms) {
     const char* k = t.kind == TermKind::Resistance ? "resistance" : t.kind == TermKind::Conductance ? "conductance" : "power";
     j[k] = net.params[static_cast<std::size_t>(t.param)].name;
     if (t.speed_exponent != 0.0) j["speed_exponent"] = t.speed_exponent;
+    if (t.event >= 0) j["event"] = net.events[static_cast<std::size_t>(t.event)];
     arr.push_back(j);
   }
   return arr;
@@ -159,12 +166,31 @@ void Network::validate() const {
       if (!std::isfinite(t.speed_exponent)) bad(src, w, "speed_exponent not finite");
       if (cooling && t.speed_exponent != 0.0 && operating_above_rpm == 0.0)
         bad(src, w + " (cooling)", "cooling-mode terms must have speed_exponent 0 (the speed is 0 there)");
+      if (t.event < -1 || t.event >= static_cast<int>(events.size())) bad(src, w, "event index out of range");
     }
   };
+  if (events.size() > static_cast<std::size_t>(kMaxEvents)) bad(src, "events", "at most " + std::to_string(kMaxEvents) + " event columns");
+  auto check_input_names = [&](const std::vector<std::string>& names, const char* what) {
+    for (std::size_t k = 0; k < names.size(); ++k) {
+      if (names[k].empty()) bad(src, what, "empty column name");
+      if (names[k] == "ambient" || node_index(names[k]) >= 0) bad(src, what, "'" + names[k] + "' is also a node name or 'ambient'");
+      for (std::size_t m = 0; m < k; ++m)
+        if (names[m] == names[k]) bad(src, what, "duplicate column '" + names[k] + "'");
+    }
+  };
+  check_input_names(boundaries, "boundaries");
+  check_input_names(events, "events");
+  for (const auto& b : boundaries)
+    for (const auto& e : events)
+      if (b == e) bad(src, "events", "'" + e + "' is declared as a boundary too");
   for (const auto& l : links) {
     const std::string w = "link '" + l.name + "'";
     if (l.a < 0 || l.a >= node_count()) bad(src, w, "first end is not a node");
-    if (l.b != kAmbient && (l.b < 0 || l.b >= node_count())) bad(src, w, "second end is not a node or ambient");
+    if (is_boundary_end(l.b)) {
+      if (boundary_of_end(l.b) >= static_cast<int>(boundaries.size())) bad(src, w, "second end is not a declared boundary");
+    } else if (l.b != kAmbient && (l.b < 0 || l.b >= node_count())) {
+      bad(src, w, "second end is not a node, ambient or a boundary");
+    }
     if (l.a == l.b) bad(src, w, "a link must join two different nodes");
     if (l.operating.empty() && l.cooling.empty()) bad(src, w, "has no terms");
     check_terms(l.operating, w, false);
@@ -176,15 +202,29 @@ void Network::validate() const {
     check_terms(s.operating, w, false);
     check_terms(s.cooling, w, true);
   }
-  for (const auto& m : measurements)
+  for (const auto& m : measurements) {
     if (m.node < 0 || m.node >= node_count()) bad(src, "measurement '" + m.column + "'", "node out of range");
+    for (const auto& b : boundaries)
+      if (m.column == b) bad(src, "measurement '" + m.column + "'", "a declared boundary column is not a node's measurement");
+    for (const auto& e : events)
+      if (m.column == e) bad(src, "measurement '" + m.column + "'", "a declared event column is not a node's measurement");
+  }
 }
 
 Network network_from_json(const json& j, const std::string& src) {
   Network net;
   check_keys(j, {"name", "description", "speed_ref_rpm", "operating_above_rpm", "sum_capacitance_J_per_K", "parameters", "nodes",
-                 "links", "sources", "measurements"},
+                 "links", "sources", "measurements", "boundaries", "events"},
              src, "top level");
+  for (const char* k : {"boundaries", "events"}) {
+    if (!j.contains(k)) continue;
+    const json& a = j.at(k);
+    if (!a.is_array()) bad(src, k, "must be an array of column names");
+    for (std::size_t i = 0; i < a.size(); ++i) {
+      if (!a[i].is_string()) bad(src, std::string(k) + "[" + std::to_string(i) + "]", "must be a column name, found " + a[i].dump());
+      (std::string(k) == "boundaries" ? net.boundaries : net.events).push_back(a[i].get<std::string>());
+    }
+  }
   net.name = j.contains("name") ? get_string(j, "name", src, "top level") : std::string("network");
   net.speed_ref_rpm = get_number(j, "speed_ref_rpm", 5000.0, src, "speed_ref_rpm");
   net.operating_above_rpm = get_number(j, "operating_above_rpm", 0.0, src, "operating_above_rpm");
@@ -238,6 +278,9 @@ Network network_from_json(const json& j, const std::string& src) {
   }
   auto node_ref = [&](const std::string& name, bool allow_ambient, const std::string& w) {
     if (allow_ambient && name == "ambient") return kAmbient;
+    if (allow_ambient)
+      for (std::size_t k = 0; k < net.boundaries.size(); ++k)
+        if (net.boundaries[k] == name) return boundary_end(static_cast<int>(k));
     const int idx = net.node_index(name);
     if (idx < 0) bad(src, w, "unknown node '" + name + "'");
     return idx;
@@ -254,8 +297,8 @@ Network network_from_json(const json& j, const std::string& src) {
       bad(src, w, "'between' must be [\"node\", \"node\" or \"ambient\"]");
     l.a = node_ref(b[0].get<std::string>(), true, w);
     l.b = node_ref(b[1].get<std::string>(), true, w);
-    if (l.a == kAmbient) std::swap(l.a, l.b);
-    if (l.a == kAmbient) bad(src, w, "a link cannot join ambient to itself");
+    if (l.a < 0) std::swap(l.a, l.b);
+    if (l.a < 0) bad(src, w, "a link needs at least one node end (ambient and boundaries are not nodes)");
     read_mode_terms(net, ls[i], true, l.operating, l.cooling, src, w);
     net.links.push_back(l);
   }
@@ -310,7 +353,13 @@ json network_to_json(const Network& net) {
   j["nodes"] = json::array();
   for (const auto& n : net.nodes)
     j["nodes"].push_back({{"name", n.name}, {"capacitance", net.params[static_cast<std::size_t>(n.capacitance_param)].name}});
-  auto node_name = [&](int i) { return i == kAmbient ? std::string("ambient") : net.nodes[static_cast<std::size_t>(i)].name; };
+  if (!net.boundaries.empty()) j["boundaries"] = net.boundaries;
+  if (!net.events.empty()) j["events"] = net.events;
+  auto node_name = [&](int i) {
+    if (i == kAmbient) return std::string("ambient");
+    if (is_boundary_end(i)) return net.boundaries[static_cast<std::size_t>(boundary_of_end(i))];
+    return net.nodes[static_cast<std::size_t>(i)].name;
+  };
   j["links"] = json::array();
   for (const auto& l : net.links) {
     json lj{{"name", l.name}, {"between", {node_name(l.a), node_name(l.b)}}};
@@ -382,7 +431,7 @@ Eigen::VectorXd default_parameters(const Network& net) {
   return p;
 }
 
-NodeMatrices assemble(const Network& net, const Eigen::VectorXd& p, double speed_rpm) {
+NodeMatrices assemble(const Network& net, const Eigen::VectorXd& p, double speed_rpm, unsigned event_mask) {
   const int n = net.node_count();
   const int ns = static_cast<int>(net.sources.size());
   const Mode mode = net.mode_at(speed_rpm);
@@ -392,9 +441,12 @@ NodeMatrices assemble(const Network& net, const Eigen::VectorXd& p, double speed
   for (int i = 0; i < n; ++i) m.capacitance[i] = p[net.nodes[static_cast<std::size_t>(i)].capacitance_param];
   m.G = Eigen::MatrixXd::Zero(n, n);
   m.ambient_conductance = Eigen::VectorXd::Zero(n);
+  m.boundary_conductance = Eigen::MatrixXd::Zero(n, static_cast<Eigen::Index>(net.boundaries.size()));
+  auto present = [&](const Term& t) { return t.event < 0 || ((event_mask >> t.event) & 1u) != 0; };
   for (const auto& l : net.links) {
     double g = 0.0;
     for (const auto& t : mode == Mode::Operating ? l.operating : l.cooling) {
+      if (!present(t)) continue;
       const double v = term_value(t, p, s);
       g += t.kind == TermKind::Resistance ? 1.0 / v : v;
     }
@@ -402,6 +454,8 @@ NodeMatrices assemble(const Network& net, const Eigen::VectorXd& p, double speed
     m.G(l.a, l.a) += g;
     if (l.b == kAmbient) {
       m.ambient_conductance[l.a] += g;
+    } else if (is_boundary_end(l.b)) {
+      m.boundary_conductance(l.a, boundary_of_end(l.b)) += g;
     } else {
       m.G(l.b, l.b) += g;
       m.G(l.a, l.b) -= g;
@@ -414,7 +468,8 @@ NodeMatrices assemble(const Network& net, const Eigen::VectorXd& p, double speed
     const auto& src = net.sources[static_cast<std::size_t>(k)];
     m.source_to_node(src.node, k) = 1.0;
     double q = 0.0;
-    for (const auto& t : mode == Mode::Operating ? src.operating : src.cooling) q += term_value(t, p, s);
+    for (const auto& t : mode == Mode::Operating ? src.operating : src.cooling)
+      if (present(t)) q += term_value(t, p, s);
     m.source_w[k] = q;
   }
   m.heat_w = m.source_to_node * m.source_w;

@@ -23,9 +23,18 @@
 //               "cooling":   [ {"conductance": "Gc"} ] } ],
 //   "sources": [ {"name": "Qf1", "node": "rear_bearing",
 //                 "operating": [ {"power": "qf1", "speed_exponent": 1.6667} ] } ],
-//   "measurements": [ {"column": "T1", "node": "rear_bearing"} ]
+//   "measurements": [ {"column": "T1", "node": "rear_bearing"} ],
+//   "boundaries": ["coolant_c"],                 // optional: further boundary temperature columns
+//   "events": ["lid_open"]                       // optional: 0/1 event columns that switch terms
 // }
 // Cooling-mode terms must have speed_exponent 0 (the speed may be 0 there).
+//
+// Declared inputs besides speed and ambient (recording columns declared as `boundary_columns` or
+// `event_columns`, see declared_columns.hpp). A link may end at a boundary column instead of
+// "ambient" ("between": ["housing", "coolant_c"]): that end is held at the recorded temperature,
+// exactly as the ambient is. A term may carry "event": "lid_open": it is present only while that
+// column is 1 (e.g. a conductance to the room while the lid is open). Both keep the model linear
+// and piecewise constant between samples, so the simulation stays exact.
 //
 // Augmented networks (e.g. a residual effect found later) are built by add_parameter() and by
 // pushing further Link/Source entries; call validate() afterwards.
@@ -59,12 +68,19 @@ struct Term {
   int param = -1;               // index into Network::params
   TermKind kind = TermKind::Resistance;
   double speed_exponent = 0.0;  // value = p * (w/w0)^speed_exponent
+  int event = -1;               // index into Network::events: present only while that column is 1; -1 = always
 };
 
 constexpr int kAmbient = -1;
+// Link end of boundary column k (Network::boundaries[k]): -2, -3, ...
+constexpr int boundary_end(int k) { return -2 - k; }
+constexpr bool is_boundary_end(int b) { return b <= -2; }
+constexpr int boundary_of_end(int b) { return -2 - b; }
+constexpr int kMaxEvents = 16;  // event states are keyed as a bit mask
+
 struct Link {
   std::string name;
-  int a = 0, b = kAmbient;      // node indices; b may be kAmbient
+  int a = 0, b = kAmbient;      // node indices; b may be kAmbient or boundary_end(k)
   std::vector<Term> operating;  // terms present in the operating mode
   std::vector<Term> cooling;    // terms present in natural cooling
 };
@@ -96,7 +112,10 @@ struct Network {
   std::vector<Link> links;
   std::vector<Source> sources;
   std::vector<Measurement> measurements;
+  std::vector<std::string> boundaries;  // further boundary temperature columns (degC), link ends boundary_end(k)
+  std::vector<std::string> events;      // event columns (0/1) that switch terms, bit k of an event mask
 
+  bool has_inputs() const { return !boundaries.empty() || !events.empty(); }
   int node_count() const { return static_cast<int>(nodes.size()); }
   int param_count() const { return static_cast<int>(params.size()); }
   int param_index(const std::string& name) const;   // -1 if absent
@@ -110,16 +129,19 @@ struct Network {
   std::vector<std::string> param_names() const;
 };
 
-// The continuous-time model at one speed: C dT/dt = -G T + g_amb T_amb + heat_w + extra.
+// The continuous-time model at one speed (and event state):
+//   C dT/dt = -G T + g_amb T_amb + G_bnd T_bnd + heat_w + extra.
 struct NodeMatrices {
   Eigen::VectorXd capacitance;          // J/K
-  Eigen::MatrixXd G;                    // W/K, symmetric, includes links to ambient on the diagonal
+  Eigen::MatrixXd G;                    // W/K, symmetric, includes links to ambient/boundaries on the diagonal
   Eigen::VectorXd ambient_conductance;  // W/K per node
+  Eigen::MatrixXd boundary_conductance; // W/K, nodes x boundaries (empty columns without boundaries)
   Eigen::VectorXd heat_w;               // W per node from the sources
   Eigen::MatrixXd source_to_node;       // nodes x sources: column s = unit vector of source s's node
   Eigen::VectorXd source_w;             // W per source
 };
-NodeMatrices assemble(const Network& net, const Eigen::VectorXd& params, double speed_rpm);
+// `event_mask` bit k = Network::events[k] is on.
+NodeMatrices assemble(const Network& net, const Eigen::VectorXd& params, double speed_rpm, unsigned event_mask = 0);
 
 Network load_network(const std::string& json_path);
 Network network_from_json(const nlohmann::json& j, const std::string& source);

@@ -107,6 +107,9 @@ SpeedReduction reduce_at_speed(const Network& net, const Eigen::VectorXd& params
 
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& o) {
   if (o.speeds_rpm.empty()) throw std::invalid_argument("reduce: give at least one operating speed");
+  if (net.has_inputs())
+    throw std::invalid_argument("reduce: the network uses declared boundary or event columns; the module's model has speed and "
+                                "ambient as its only inputs, so it cannot carry them");
   if (o.speeds_rpm.size() + 1 > kModelMaxBreakpoints)
     throw std::invalid_argument("reduce: at most " + std::to_string(kModelMaxBreakpoints - 1) + " operating speeds fit the firmware blob");
   for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
