@@ -142,8 +142,10 @@ SuiteCase effect_case(const std::string& family, const std::string& variant, uns
     P("coupling_at_w0", "W/K", g);
     P("speed_exponent", "1", 1);
   } else if (family == "extra_heat_input") {
-    const std::string node = pick_of(rng, kAllNodes);
-    const double w = round_to(uniform(rng, 3, 10), 0.1);
+    const bool unprobed = variant == "unprobed shaft";
+    c.shaft_probe = !unprobed;
+    const std::string node = unprobed ? std::string("shaft") : pick_of(rng, kAllNodes);
+    const double w = unprobed ? round_to(uniform(rng, 5, 15), 0.1) : round_to(uniform(rng, 3, 10), 0.1);
     const int e = 1 + pick(rng, 2);
     c.effects = {fmt::format("speed-heat:{}@{}^{}", num(w), node, e)};
     c.nodes = {node};
@@ -286,7 +288,7 @@ std::vector<SuiteCase> make_cases(const SuiteOptions& opts) {
   const std::vector<std::pair<std::string, std::string>> variants = {
       {"heat_source_transient", "additive"},  {"heat_source_transient", "multiplicative"},
       {"temperature_dependent_heat", "rising"}, {"temperature_dependent_heat", "falling"},
-      {"coupled_heat", "preload"},            {"extra_heat_input", "speed-driven"},
+      {"coupled_heat", "preload"},            {"extra_heat_input", "speed-driven"}, {"extra_heat_input", "unprobed shaft"},
       {"sensor_lag", "lag"},                  {"sensor_drift", "offset drift"},
       {"ambient_dynamics", "air lag"},        {"second_boundary", "coolant"},
       {"event_conductance", "cover open"},    {"latent_mass", "missing mass"}};
@@ -324,6 +326,7 @@ nlohmann::json to_json(const SuiteCase& c) {
   j["goal_factor"] = c.goal_factor;
   j["seed"] = c.seed;
   j["procedure"] = c.procedure == ProcedureSize::Full ? "full" : "reduced";
+  j["shaft_probe"] = c.shaft_probe;
   return j;
 }
 
@@ -346,6 +349,7 @@ SuiteCase case_from_json(const nlohmann::json& j) {
   c.goal_factor = j.at("goal_factor").get<double>();
   c.seed = j.at("seed").get<unsigned>();
   c.procedure = j.at("procedure").get<std::string>() == "full" ? ProcedureSize::Full : ProcedureSize::Reduced;
+  c.shaft_probe = j.value("shaft_probe", true);
   return c;
 }
 

@@ -14,7 +14,9 @@
 //   coupled_heat             2..6 W/K x (w/w0) x a node difference (rear_bearing-housing,
 //                            housing-front_bearing, rear_bearing-front_bearing, housing-shaft;
 //                            thermally induced preload), heating one bearing
-//   extra_heat_input         3..10 W at w0 x (w/w0)^1 or ^2 at any node (windage, seals, motor)
+//   extra_heat_input         3..10 W at w0 x (w/w0)^1 or ^2 at any node (windage, seals, motor);
+//                            variant "unprobed shaft": 5..15 W at the shaft with channel 5
+//                            disabled, so the heated node has neither a source nor a probe
 //   sensor_lag               2..10 min on channel 1, 2, 3 or 5
 //   sensor_drift             0.005..0.02 K/h (either sign) on channel 1, 2, 3 or 5
 //   ambient_dynamics         air lag 20..90 min, with the room temperature ramping 1..3 K over
@@ -58,6 +60,7 @@ struct SuiteCase {
   double goal_factor = 5;              // check RMSE cut that meets the goal (sensor lag: 3)
   unsigned seed = 1;                   // noise seed (and speed jitter)
   ProcedureSize procedure = ProcedureSize::Full;
+  bool shaft_probe = true;             // false: channel 5 disabled, the shaft node has no probe
 };
 
 nlohmann::json to_json(const SuiteCase& c);

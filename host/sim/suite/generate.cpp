@@ -63,13 +63,14 @@ void merge_declared_columns(const std::string& path, const HiddenEffects& fx, do
   std::ofstream(path) << out.str();
 }
 
-// Sum of squared (recorded - true) over T1, T2, T3, T5 of a recording, and the cell count.
+// Sum of squared (recorded - true) over T1, T2, T3 (and T5 when recorded), and the cell count.
 std::pair<double, size_t> floor_sums(const std::string& path, const std::vector<TruthSample>& truth, double t0) {
   const thermal::Recording rec = thermal::read_recording_csv(path);
   double ss = 0;
   size_t n = 0;
   for (int ch : {1, 2, 3, 5}) {
     const int col = rec.channel_index("T" + std::to_string(ch));
+    if (col < 0 && ch == 5) continue;  // channel 5 disabled: no shaft probe
     if (col < 0) throw std::runtime_error(path + ": no column T" + std::to_string(ch));
     for (size_t r = 0; r < rec.rows(); ++r) {
       const double v = rec.temp_c(long(r), col);
@@ -94,7 +95,7 @@ GeneratedCase generate_case(const SuiteCase& c, const std::string& dir, const Ge
   so.board = BoardKind::Native;
   so.plant.speed = proc.speed();
   so.plant.ambient = AmbientProfile::parse(c.ambient);
-  so.plant.ch5 = Ch5Mode::ShaftEnd;
+  so.plant.ch5 = c.shaft_probe ? Ch5Mode::ShaftEnd : Ch5Mode::Disabled;
   for (const auto& e : c.effects) parse_effect(e, so.plant.effects);
   so.adc.seed = c.seed;
   so.adc.noise_scale = 1.0;  // the AD7794 datasheet noise
@@ -102,10 +103,12 @@ GeneratedCase generate_case(const SuiteCase& c, const std::string& dir, const Ge
   ModuleTransport transport(module);
 
   // Channel 5 sits on the shaft end: give it the role, as an installer would, so the recordings
-  // carry it and the residual loop places the probe by itself.
+  // carry it and the residual loop places the probe by itself (a case without the shaft probe
+  // disables the channel instead).
   {
     link::Session s(transport);
-    s.set_config(wire::channel_role_key(4), static_cast<int32_t>(wire::ChannelRole::Shaft));
+    s.set_config(wire::channel_role_key(4), static_cast<int32_t>(c.shaft_probe ? wire::ChannelRole::Shaft
+                                                                               : wire::ChannelRole::Disabled));
   }
 
   GeneratedCase g;

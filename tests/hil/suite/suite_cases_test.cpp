@@ -176,6 +176,24 @@ TEST(EffectSuiteGenerate, RecordsTheProcedureThroughTheModuleWithDeclaredColumns
   EXPECT_DOUBLE_EQ(j.at("noise_floor_check_K").get<double>(), g.noise_floor_check_k);
 }
 
+TEST(EffectSuiteGenerate, WithoutTheShaftProbeChannelFiveIsDisabled) {
+  SuiteOptions o;
+  o.only = {"extra_heat_input_unprobed_shaft_01"};
+  auto cases = make_cases(o);
+  ASSERT_EQ(cases.size(), 1u);
+  SuiteCase c = cases[0];
+  EXPECT_FALSE(c.shaft_probe);
+  EXPECT_EQ(c.nodes, std::vector<std::string>{"shaft"});
+  c.procedure = ProcedureSize::Reduced;
+  const std::string dir = testing::TempDir() + "/suite_unprobed";
+  fs::remove_all(dir);
+  const GeneratedCase g = generate_case(c, dir);
+  const thermal::Recording rec = thermal::read_recording_csv(dir + "/" + g.runs[0].path);
+  EXPECT_EQ(rec.channels, (std::vector<std::string>{"T1", "T2", "T3"}));
+  EXPECT_NE(rec.meta_value("channel_roles").find("T5=disabled"), std::string::npos) << rec.meta_value("channel_roles");
+  EXPECT_LT(g.noise_floor_check_k, 0.01);
+}
+
 nlohmann::json truth_of(const std::string& family, std::vector<std::string> nodes, std::vector<std::string> allowed = {}) {
   SuiteCase c;
   c.id = "t";
