@@ -5,6 +5,7 @@
 #include "host/sim/suite/cases.hpp"
 #include "host/sim/suite/generate.hpp"
 #include "host/sim/suite/score.hpp"
+#include "host/thermal/declared_columns.hpp"
 #include "host/thermal/recording.hpp"
 
 #include <gtest/gtest.h>
@@ -148,6 +149,11 @@ TEST(EffectSuiteGenerate, RecordsTheProcedureThroughTheModuleWithDeclaredColumns
     EXPECT_EQ(rec.meta_value("channel_roles"), "T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft");
     EXPECT_EQ(rec.meta_value("boundary_columns"), "coolant_c");
     EXPECT_EQ(rec.meta_value("event_columns"), "lid_open");
+    // the reader's contract: declared as inputs, every boundary cell present, events 0/1
+    EXPECT_EQ(thermal::boundary_columns(rec), std::vector<std::string>{"coolant_c"});
+    EXPECT_EQ(thermal::event_columns(rec), std::vector<std::string>{"lid_open"});
+    thermal::Recording checked = rec;
+    EXPECT_NO_THROW(thermal::declare_columns(checked, {}, {})) << r.name;
     EXPECT_EQ(rec.meta_value("lost_samples"), "0");
     EXPECT_EQ(rec.channels, (std::vector<std::string>{"T1", "T2", "T3", "T5", "coolant_c", "lid_open"}));
     // the speed steps of the run are in the recorded tach speed
