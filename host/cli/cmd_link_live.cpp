@@ -159,11 +159,18 @@ struct RecordArgs {
 void print_record_summary(const RecordArgs& a, const RecordSummary& s) {
   std::cerr << fmt::format("record: {} rows written to {}, {} samples lost in {} gap(s), stopped: {}\n", s.rows,
                            a.out, s.lost, s.gaps.size(), s.stop_reason);
+  for (const auto& f : s.sensor_faults)
+    std::cerr << fmt::format("record: {} reported {} from {:.1f} to {:.1f} s (empty cells)\n", f.channel, f.code,
+                             f.from_s, f.to_s);
   if (!a.json) return;
   json gaps = json::array();
   for (const auto& g : s.gaps) gaps.push_back({g.first, g.last});
+  json faults = json::array();
+  for (const auto& f : s.sensor_faults)
+    faults.push_back({{"channel", f.channel}, {"code", f.code}, {"from_s", f.from_s}, {"to_s", f.to_s}});
   print_json({{"out", a.out}, {"rows", s.rows}, {"lost", s.lost}, {"gaps", gaps}, {"restarts", s.restarts},
-              {"reconnects", s.reconnects}, {"rejected_frames", s.invalid_frames}, {"stop_reason", s.stop_reason}});
+              {"reconnects", s.reconnects}, {"rejected_frames", s.invalid_frames}, {"sensor_faults", faults},
+              {"stop_reason", s.stop_reason}});
 }
 
 void run_record(const RecordArgs& a) {
@@ -204,7 +211,9 @@ void register_record(CLI::App& app) {
       "ambient, named by its hardware channel number), then one row per sample: module time since the\n"
       "first sample (s), speed (rpm), ambient channel (degC), temperatures (degC, empty = missing).\n"
       "Lost samples are never invented: each gap is a '# dropped: a-b' line (sample_index range) after\n"
-      "the rows, with samples, lost_samples, module_restarts, link_reconnects and stop_reason.\n"
+      "the rows, with samples, lost_samples, module_restarts, link_reconnects and stop_reason. A channel\n"
+      "the module reports faulted is an empty cell, and a '# sensor_fault: T2 open 1200.000-1500.000'\n"
+      "line after the rows says which fault over which time_s range (codes open, short, adc, ref).\n"
       "Progress goes to stderr; Ctrl-C stops cleanly.\n"
       "  btsm record --port /tmp/btsm-sim --out rec.csv --duration 3600");
   add_link_options(*c, a->link);

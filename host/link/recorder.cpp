@@ -85,6 +85,55 @@ std::optional<SampleEvent> next_sample_with_reconnect(Session& session, Millis t
   }
 }
 
+std::string sensor_fault_code(uint8_t st) {
+  std::string code;
+  auto add = [&](uint8_t bit, const char* name) {
+    if (st & bit) code += (code.empty() ? "" : "+") + std::string(name);
+  };
+  add(kFaultOpen, "open");
+  add(kFaultShort, "short");
+  add(kFaultAdc, "adc");
+  add(kFaultReference, "ref");
+  if (code.empty() && (st & kStatusStateMask) == static_cast<uint8_t>(DiagState::SensorFault)) code = "fault";
+  return code;
+}
+
+namespace {
+
+// Per channel, the stretch of rows with one fault code; closed when the code changes.
+class SensorFaultEpisodes {
+ public:
+  void row(double time_s, const Sample& s, const ChannelRoles& roles) {
+    for (int c = 0; c < kChannels; ++c) {
+      if (roles.role[c] == static_cast<uint8_t>(ChannelRole::Disabled)) continue;
+      const std::string code = sensor_fault_code(s.channel_status[c]);
+      Open& o = open_[c];
+      if (!o.code.empty() && o.code != code) close(c);
+      if (!code.empty() && o.code.empty()) o = Open{code, time_s, time_s};
+      if (!code.empty()) o.last_s = time_s;
+    }
+  }
+  std::vector<thermal::SensorFaultEpisode> finish() {
+    for (int c = 0; c < kChannels; ++c)
+      if (!open_[c].code.empty()) close(c);
+    return done_;
+  }
+
+ private:
+  struct Open {
+    std::string code;
+    double first_s = 0, last_s = 0;
+  };
+  void close(int c) {
+    done_.push_back({fmt::format("T{}", c + 1), open_[c].code, open_[c].first_s, open_[c].last_s});
+    open_[c] = Open{};
+  }
+  Open open_[kChannels];
+  std::vector<thermal::SensorFaultEpisode> done_;
+};
+
+}  // namespace
+
 RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOptions& opts) {
   RecordSummary sum;
   const int amb = id.roles.ambient_index();
@@ -130,8 +179,10 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
 
   // The rows already written are good whatever ends the recording: a lost link still gets the
   // summary lines (with the reason), then the error goes to the caller.
+  SensorFaultEpisodes faults;
   const auto finish = [&] {
     sum.lost = session.tracker().lost();
+    sum.sensor_faults = faults.finish();
     sum.invalid_frames = session.frame_counters().frame_errors() + session.invalid_payloads();
     w.flush();
     w.close();
@@ -147,6 +198,8 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
     if (sum.ambient_held_rows) tail << "# ambient_held_rows: " << sum.ambient_held_rows << "\n";
     if (sum.rows_without_ambient) tail << "# rows_without_ambient: " << sum.rows_without_ambient << "\n";
     for (const auto& g : sum.gaps) tail << "# dropped: " << g.first << "-" << g.last << "\n";
+    for (const auto& f : sum.sensor_faults)
+      tail << "# " << thermal::kSensorFaultKey << ": " << thermal::format_sensor_fault(f) << "\n";
     tail << "# stop_reason: " << sum.stop_reason << "\n";
     if (!tail) throw std::runtime_error("cannot append the summary to " + opts.out_path);
   };
@@ -207,6 +260,7 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
       std::vector<double> temps;
       for (int c : columns) temps.push_back(mk_to_c(s.temp_mK[c]));
       w.append(time_s, s.speed_rpm, ambient, temps);
+      faults.row(time_s, s, id.roles);
       last_time_s = time_s;
       ++sum.rows;
       if (opts.progress) {

@@ -8,8 +8,12 @@
 // host clock). ambient_c is the ambient channel's reading; when it is missing on a row the last
 // valid value is held and counted (`# ambient_held_rows`), rows before the first valid ambient
 // are skipped and counted (`# rows_without_ambient`). Lost samples are never filled in: each
-// gap is a `# dropped: a-b` line (sample_index range, inclusive) at the end of the file.
+// gap is a `# dropped: a-b` line (sample_index range, inclusive) at the end of the file. A channel
+// the module reports faulted (open, short, ADC, reference) is an empty cell, and why is a
+// `# sensor_fault: T2 open 1200.000-1500.000` line at the end (host/thermal/sensor_faults.hpp).
+
 #include "host/link/session.hpp"
+#include "host/thermal/sensor_faults.hpp"
 
 #include <atomic>
 #include <functional>
@@ -70,6 +74,7 @@ struct RecordSummary {
   uint64_t rows = 0, lost = 0, restarts = 0, invalid_frames = 0, reconnects = 0;
   uint64_t ambient_held_rows = 0, rows_without_ambient = 0;
   std::vector<SampleGap> gaps;
+  std::vector<thermal::SensorFaultEpisode> sensor_faults;  // also '# sensor_fault:' lines in the file
   std::string stop_reason;
 };
 
@@ -80,6 +85,9 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
 std::optional<SampleEvent> next_sample_with_reconnect(Session& session, Millis timeout, double reconnect_s,
                                                       uint64_t& reconnects, const std::atomic<bool>* stop,
                                                       const LinkLossNotes* notes = nullptr);
+
+// The fault code of a channel status byte ("open", "open+adc", "fault"), "" when it reports none.
+std::string sensor_fault_code(uint8_t channel_status);
 
 // One text line for `btsm monitor`: index, speed, per channel measured/predicted/state, overall.
 std::string format_sample_line(const wire::Sample& s, const ChannelRoles& roles);

@@ -1,0 +1,35 @@
+#pragma once
+// Why a temperature cell of a recording is empty: the module's fault code for a channel over a
+// stretch of rows, kept as comment lines after the rows so every reader that ignores '#' lines
+// reads the file as before (backward compatible):
+//
+//   # sensor_fault: T2 open 1200.000-1500.000
+//
+// = channel T2 (hardware channel number, also for the ambient channel) reported `open` on every
+// row with time_s from 1200 to 1500 s (inclusive, the recording's time_s). Codes: open, short,
+// adc, ref, joined with '+' when several bits were set at once ("open+adc"); `fault` for a
+// SENSOR_FAULT state without a fault bit. Written by `btsm record` (host/link/recorder.hpp).
+#include "host/thermal/recording.hpp"
+
+#include <string>
+#include <vector>
+
+namespace btsm::thermal {
+
+struct SensorFaultEpisode {
+  std::string channel;  // "T2"
+  std::string code;     // "open", "short", "adc", "ref", "open+adc", "fault"
+  double from_s = 0;    // time_s of the first and last row with this code, inclusive
+  double to_s = 0;
+};
+
+inline constexpr const char* kSensorFaultKey = "sensor_fault";
+
+// The value after "# sensor_fault: " for an episode ("T2 open 1200.000-1500.000").
+std::string format_sensor_fault(const SensorFaultEpisode& e);
+
+// The episodes of a recording's `sensor_fault` lines, in file order. Throws
+// std::invalid_argument naming the recording and the line's text when one is malformed.
+std::vector<SensorFaultEpisode> sensor_faults(const Recording& rec);
+
+}  // namespace btsm::thermal
