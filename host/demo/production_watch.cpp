@@ -86,7 +86,7 @@ ProductionResult watch_production(link::Session& session, const link::ModuleIden
                       report::measured("front_bearing", t_h, meas3),
                       report::model("front_bearing", t_h, pred3, "module prediction")}};
   report::Plot diag{"Module diagnosis (0 NORMAL, 1 WARN, 2 ALARM, 3 SENSOR_FAULT)", report::kTimeAxis, "overall state",
-                    {report::Series{"", t_h, state, report::Series::Style::Step, "state"}}};
+                    {report::Series{"overall state", t_h, state, report::Series::Style::Step}}};
   diag.height_weight = 0.7;
   for (auto* p : {&temps, &diag}) p->markers.push_back({fault_h, "fault starts"});
   report::save_figure({temps, diag, report::speed_panel(t_h, speed)}, stem);

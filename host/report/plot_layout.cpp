@@ -76,7 +76,10 @@ void drop_fractional_ticks(AxisTicks& t) {
   AxisTicks kept = t;
   kept.values.clear(), kept.labels.clear();
   for (size_t i = 0; i < t.values.size(); ++i)
-    if (std::fabs(t.values[i] - std::round(t.values[i])) < 1e-9) kept.values.push_back(t.values[i]), kept.labels.push_back(t.labels[i]);
+    if (std::fabs(t.values[i] - std::round(t.values[i])) < 1e-9) {
+      kept.values.push_back(t.values[i]);
+      kept.labels.push_back(std::to_string(std::lround(t.values[i])));  // "2", not "2.0"
+    }
   t = kept;
 }
 

@@ -214,3 +214,12 @@ TEST(AxisTicks, ManyDecadesLabelOnlySome) {
   EXPECT_LE(labelled, 6);
   EXPECT_EQ(t.values.size(), 23u);  // every decade keeps its grid line
 }
+
+TEST(PlotStyle, AnIndexAxisHasWholeNumberTicks) {
+  const FigureLayout L = layout_figure({Plot{"HSV", "state index", "K/W", {Series{"a", {1, 2, 3, 4}, {1, 0.1, 0.01, 0.001}}}}}, {});
+  ASSERT_GE(L.panels[0].x_ticks.values.size(), 2u);
+  for (size_t i = 0; i < L.panels[0].x_ticks.values.size(); ++i) {
+    EXPECT_DOUBLE_EQ(L.panels[0].x_ticks.values[i], std::round(L.panels[0].x_ticks.values[i]));
+    EXPECT_EQ(L.panels[0].x_ticks.labels[i].find('.'), std::string::npos) << L.panels[0].x_ticks.labels[i];
+  }
+}
