@@ -209,7 +209,7 @@ void register_record(CLI::App& app) {
       "CSV: '# key: value' metadata (module_id, firmware_version, link, channel_roles, ambient_channel),\n"
       "header time_s,speed_rpm,ambient_c,T<k>... (one column per channel that is neither disabled nor\n"
       "ambient, named by its hardware channel number), then one row per sample: module time since the\n"
-      "first sample (s), speed (rpm), ambient channel (degC), temperatures (degC, empty = missing).\n"
+      "first sample (s), speed (rpm), ambient channel (°C), temperatures (°C, empty = missing).\n"
       "Lost samples are never invented: each gap is a '# dropped: a-b' line (sample_index range) after\n"
       "the rows, with samples, lost_samples, module_restarts, link_reconnects and stop_reason. A channel\n"
       "the module reports faulted is an empty cell, and a '# sensor_fault: T2 open 1200.000-1500.000'\n"
