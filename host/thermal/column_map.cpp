@@ -2,6 +2,7 @@
 #include "column_map.hpp"
 
 #include "common/wire_messages.hpp"
+#include "declared_columns.hpp"
 
 #include <map>
 #include <sstream>
@@ -22,6 +23,7 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec) {
     }
     cols.push_back(c);
   }
+  check_measurements_not_declared(net, rec);  // a declared boundary/event column is an input, never a node
   return cols;
 }
 

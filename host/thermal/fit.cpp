@@ -59,6 +59,7 @@ class FitPipeline {
   const Eigen::MatrixXd* extra_of(std::size_t r) const {
     return opts_.extra_heat_w.empty() ? nullptr : &opts_.extra_heat_w[r];
   }
+  const RecordingInputs* inputs_of(std::size_t r) const { return net_.has_inputs() ? &inputs_[r] : nullptr; }
   void require_linear(const std::vector<int>& params, const std::vector<LinearForm>& forms) const {
     for (int i : params)
       if (forms[static_cast<std::size_t>(i)] == LinearForm::None)
@@ -129,6 +130,7 @@ class FitPipeline {
     for (const auto& r : recs_) {
       cols_.push_back(measurement_columns(net_, r));
       if (r.rows() < 2) throw std::invalid_argument(r.source + ": a recording needs at least two rows");
+      inputs_.push_back(recording_inputs(net_, r));  // throws naming a missing or bad declared column
     }
     if (!opts_.extra_heat_w.empty()) {
       if (opts_.extra_heat_w.size() != recs_.size()) throw std::invalid_argument("fit: extra_heat_w needs one matrix per recording");
@@ -143,6 +145,7 @@ class FitPipeline {
       run.end = recs_[r].rows() - 1;
       run.cols = cols_[r];
       run.extra = extra_of(r);
+      run.inputs = inputs_of(r);
       run.recording_index = static_cast<int>(r);
       whole_.push_back(run);
     }
@@ -218,6 +221,7 @@ class FitPipeline {
           run.end = e;
           run.cols = cols_[r];
           run.extra = extra_of(r);
+          run.inputs = inputs_of(r);
           cooling_runs.push_back(run);
         }
         b = e;
@@ -232,6 +236,7 @@ class FitPipeline {
         warned_fill = true;
       }
       in.extra = extra_of(r);
+      in.inputs = inputs_of(r);
       cool_data.push_back(std::move(in));
     }
     std::vector<int> cool_auto;
@@ -280,6 +285,7 @@ class FitPipeline {
       for (int i : op_auto) pf[i] = 1.0;
       in.temps = filled_temperatures(net_, pf, recs_[r], cols_[r]);
       in.extra = extra_of(r);
+      in.inputs = inputs_of(r);
       op_data.push_back(std::move(in));
     }
     say("stage 3: equation-error start of " + std::to_string(op_auto.size()) + " operating-only parameters");
@@ -357,6 +363,7 @@ class FitPipeline {
   double sum_c_ = kNaN;                        // J/K
   bool use_sum_c_ = false;
   std::vector<std::vector<int>> cols_;         // per recording: channel of each measurement
+  std::vector<RecordingInputs> inputs_;        // per recording: declared boundary/event columns the network uses
   std::vector<Run> whole_;                     // one run per recording
   std::vector<Eigen::VectorXd> x0_whole_;      // per recording, degC per node
   std::vector<int> free_all_, free_cool_, free_op_only_;
@@ -383,8 +390,12 @@ Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& 
   const auto cols = measurement_columns(net, rec);
   const Eigen::MatrixXd sim = simulate_recording(net, params, rec, x0, extra);
   Eigen::MatrixXd r(sim.rows(), static_cast<Eigen::Index>(cols.size()));
-  for (std::size_t m = 0; m < cols.size(); ++m)
+  for (std::size_t m = 0; m < cols.size(); ++m) {
     r.col(static_cast<Eigen::Index>(m)) = sim.col(net.measurements[m].node) - rec.temp_c.col(cols[m]);
+    if (const int d = net.measurements[m].drift_param; d >= 0)  // a drifting probe (network.hpp)
+      for (Eigen::Index k = 0; k < r.rows(); ++k)
+        r(k, static_cast<Eigen::Index>(m)) += params[d] * (rec.time_s[static_cast<std::size_t>(k)] - rec.time_s.front()) / 3600.0;
+  }
   return r;  // NaN where the measurement is missing
 }
 

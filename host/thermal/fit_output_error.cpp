@@ -4,6 +4,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <stdexcept>
 #include <thread>
 
 namespace btsm::thermal::fitting {
@@ -29,7 +30,23 @@ std::vector<bool> params_used(const Network& net, Mode mode) {
 
 OutputErrorEvaluator::OutputErrorEvaluator(OutputErrorProblem& pr) : pr_(pr) {
   for (Mode m : {Mode::Operating, Mode::Cooling}) used_[m == Mode::Operating ? 0 : 1] = params_used(*pr.net, m);
-  for (const auto& r : pr.runs) uses_extra_ = uses_extra_ || r.extra != nullptr;
+  for (const auto& r : pr.runs) {
+    uses_extra_ = uses_extra_ || r.extra != nullptr;
+    if (pr.net->has_inputs() && !r.inputs)
+      throw std::invalid_argument("fit: the network uses declared columns but a run has no inputs");
+  }
+  for (const auto& m : pr.net->measurements) {
+    int j = -1;
+    for (int f = 0; f < pr.nf(); ++f)
+      if (m.drift_param >= 0 && pr.free[static_cast<std::size_t>(f)] == m.drift_param) j = f;
+    drift_free_.push_back(j);
+  }
+}
+
+OutputErrorEvaluator::Key OutputErrorEvaluator::key_of(const Run& run, std::size_t k) {
+  const Recording& rec = *run.rec;
+  const unsigned mask = run.inputs && !run.inputs->event_mask.empty() ? run.inputs->event_mask[k] : 0u;
+  return {rec.speed_rpm[k], mask, rec.time_s[k + 1] - rec.time_s[k]};
 }
 
 Evaluation OutputErrorEvaluator::evaluate(const Eigen::VectorXd& u, bool with_jacobian) {
@@ -85,6 +102,9 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
   Eigen::VectorXd x(n), xnext(n), dv(n * nf), extra(n);
   const Run& run = pr_.runs[ri];
   const Recording& rec = *run.rec;
+  const auto& meas = pr_.net->measurements;
+  const Eigen::Index nb = run.inputs ? run.inputs->boundary_c.cols() : 0;
+  Eigen::RowVectorXd drow(nf);
   x = pr_.x0[ri];
   S.setZero();
   X.setIdentity();
@@ -93,15 +113,24 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
     for (std::size_t m = 0; m < run.cols.size(); ++m) {
       const double y = rec.temp_c(kr, run.cols[m]);
       if (!std::isfinite(y)) continue;
-      const int node = pr_.net->measurements[m].node;
-      sink(k - run.begin, x[node] - y, S.row(node), X.row(node));
+      const int node = meas[m].node;
+      if (meas[m].drift_param < 0) {
+        sink(k - run.begin, x[node] - y, S.row(node), X.row(node));
+        continue;
+      }
+      // a drifting probe reads drift [K/h] x hours since the recording's first sample too high
+      const double hours = (rec.time_s[k] - rec.time_s.front()) / 3600.0;
+      drow = S.row(node);
+      const int j = drift_free_[m];
+      if (j >= 0) drow[j] += hours * pr_.tf[static_cast<std::size_t>(j)].dp_dz(pr_.tf[static_cast<std::size_t>(j)].to_z(pr_.p[meas[m].drift_param]));
+      sink(k - run.begin, x[node] + pr_.p[meas[m].drift_param] * hours - y, drow, X.row(node));
     }
     if (k == run.end) break;
-    const double dt = rec.time_s[k + 1] - rec.time_s[k];
     const double amb = rec.ambient_c[k];
-    const KeyData& kd = keys_.find(std::make_pair(rec.speed_rpm[k], dt))->second;
+    const KeyData& kd = keys_.find(key_of(run, k))->second;
     xnext.noalias() = kd.base.Phi * x;
     xnext += kd.base.drive + kd.base.ambient_gain * amb;
+    for (Eigen::Index b = 0; b < nb; ++b) xnext += kd.base.boundary_gain.col(b) * run.inputs->boundary_c(kr, b);
     if (run.extra) {
       extra = run.extra->row(kr).transpose();
       xnext.noalias() += kd.base.Gamma * extra;
@@ -111,6 +140,7 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
       if (run.extra) dv.noalias() += kd.dgamma_stack * extra;
       D = Eigen::Map<const Eigen::MatrixXd>(dv.data(), n, nf);
       D += kd.ddrive + kd.damb * amb;
+      for (Eigen::Index b = 0; b < nb; ++b) D += kd.dbnd[static_cast<std::size_t>(b)] * run.inputs->boundary_c(kr, b);
       Snext.noalias() = kd.base.Phi * S;
       S = Snext + D;
       if (pr_.estimate_x0) {
@@ -195,22 +225,26 @@ void OutputErrorEvaluator::apply(const Eigen::VectorXd& u) {
 void OutputErrorEvaluator::build_keys(bool with_jacobian) {
   keys_.clear();
   const int n = pr_.n(), nf = pr_.nf();
-  std::map<double, ModalForm> modal;
+  const std::size_t nb = pr_.net->boundaries.size();
+  std::map<std::pair<double, unsigned>, ModalForm> modal;
   for (const auto& run : pr_.runs) {
-    const Recording& rec = *run.rec;
     for (std::size_t k = run.begin; k < run.end; ++k) {
-      const auto key = std::make_pair(rec.speed_rpm[k], rec.time_s[k + 1] - rec.time_s[k]);
+      const Key key = key_of(run, k);
       if (keys_.count(key)) continue;
-      auto mit = modal.find(key.first);
-      if (mit == modal.end()) mit = modal.emplace(key.first, modal_form(assemble(*pr_.net, pr_.p, key.first))).first;
+      const double speed = std::get<0>(key), dt = std::get<2>(key);
+      const unsigned mask = std::get<1>(key);
+      const auto mkey = std::make_pair(speed, mask);
+      auto mit = modal.find(mkey);
+      if (mit == modal.end()) mit = modal.emplace(mkey, modal_form(assemble(*pr_.net, pr_.p, speed, mask))).first;
       KeyData kd;
-      kd.base = step_matrices(mit->second, key.second);
+      kd.base = step_matrices(mit->second, dt);
       if (with_jacobian) {
         kd.dphi_stack = Eigen::MatrixXd::Zero(n * nf, n);
         if (uses_extra_) kd.dgamma_stack = Eigen::MatrixXd::Zero(n * nf, n);
         kd.ddrive = Eigen::MatrixXd::Zero(n, nf);
         kd.damb = Eigen::MatrixXd::Zero(n, nf);
-        const auto& used = used_[pr_.net->mode_at(key.first) == Mode::Operating ? 0 : 1];
+        kd.dbnd.assign(nb, Eigen::MatrixXd::Zero(n, nf));
+        const auto& used = used_[pr_.net->mode_at(speed) == Mode::Operating ? 0 : 1];
         for (int j = 0; j < nf; ++j) {
           const int pi = pr_.free[static_cast<std::size_t>(j)];
           if (!used[static_cast<std::size_t>(pi)]) continue;
@@ -221,13 +255,15 @@ void OutputErrorEvaluator::build_keys(bool with_jacobian) {
           Eigen::VectorXd pp = pr_.p, pm = pr_.p;
           pp[pi] = tf.to_p(z0 + h);
           pm[pi] = tf.to_p(z0 - h);
-          const StepMatrices sp = step_matrices(modal_form(assemble(*pr_.net, pp, key.first)), key.second);
-          const StepMatrices sm = step_matrices(modal_form(assemble(*pr_.net, pm, key.first)), key.second);
+          const StepMatrices sp = step_matrices(modal_form(assemble(*pr_.net, pp, speed, mask)), dt);
+          const StepMatrices sm = step_matrices(modal_form(assemble(*pr_.net, pm, speed, mask)), dt);
           const double inv = 1.0 / (2 * h);
           kd.dphi_stack.middleRows(j * n, n) = (sp.Phi - sm.Phi) * inv;
           if (uses_extra_) kd.dgamma_stack.middleRows(j * n, n) = (sp.Gamma - sm.Gamma) * inv;
           kd.ddrive.col(j) = (sp.drive - sm.drive) * inv;
           kd.damb.col(j) = (sp.ambient_gain - sm.ambient_gain) * inv;
+          for (std::size_t b = 0; b < nb; ++b)
+            kd.dbnd[b].col(j) = (sp.boundary_gain.col(static_cast<Eigen::Index>(b)) - sm.boundary_gain.col(static_cast<Eigen::Index>(b))) * inv;
         }
         // dv = dphi_stack * x is laid out block-wise (j*n + i); the evaluator maps it as an
         // n x nf column-major matrix, which is exactly that layout.

@@ -18,6 +18,7 @@
 #include <cmath>
 #include <cstddef>
 #include <map>
+#include <tuple>
 #include <utility>
 #include <vector>
 
@@ -29,6 +30,7 @@ struct Run {
   std::size_t begin = 0, end = 0;
   std::vector<int> cols;               // recording channel per measurement
   const Eigen::MatrixXd* extra = nullptr;
+  const RecordingInputs* inputs = nullptr;  // declared boundary/event columns of the whole recording (or null)
   int recording_index = -1;            // index into the caller's recordings (-1 = sub-range)
 };
 
@@ -85,7 +87,10 @@ class OutputErrorEvaluator {
     Eigen::MatrixXd dgamma_stack; // (n*nf) x n, only when extra heat is used
     Eigen::MatrixXd ddrive;       // n x nf
     Eigen::MatrixXd damb;         // n x nf
+    std::vector<Eigen::MatrixXd> dbnd;  // per declared boundary: n x nf
   };
+  using Key = std::tuple<double, unsigned, double>;  // speed, event state, dt
+  static Key key_of(const Run& run, std::size_t k);
   // Simulates run ri with its forward sensitivities; calls sink(row within the run, residual,
   // d residual / d params (1 x nf), d residual / d x0 (1 x n)) for every measured cell (the
   // derivatives only meaningful when with_jacobian).
@@ -99,7 +104,8 @@ class OutputErrorEvaluator {
   OutputErrorProblem& pr_;
   std::vector<bool> used_[2];
   bool uses_extra_ = false;
-  std::map<std::pair<double, double>, KeyData> keys_;
+  std::map<Key, KeyData> keys_;
+  std::vector<int> drift_free_;   // per measurement: index into free of its drift parameter, -1 = none
 };
 
 // The unknowns u of the problem's current parameter values and initial states, and u clamped to

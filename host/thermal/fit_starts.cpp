@@ -61,8 +61,16 @@ std::vector<int> equation_error_start(const Network& net, const std::vector<Equa
               if (l.a != i && l.b != i) continue;
               if ((mode == Mode::Operating ? l.operating : l.cooling).empty()) continue;
               const int o = l.a == i ? l.b : l.a;
-              if (o == kAmbient) continue;
+              if (o < 0) continue;  // ambient or a declared boundary: always known
               for (std::size_t k = b; k <= last && ok; ++k) ok = std::isfinite(d.temps(static_cast<Eigen::Index>(k), o));
+            }
+            for (const auto& src : net.sources) {
+              if (!ok) break;
+              if (src.node != i) continue;
+              for (const auto& t : mode == Mode::Operating ? src.operating : src.cooling)
+                for (int o : {t.hot, t.cold})
+                  if (t.driven && o >= 0)
+                    for (std::size_t k = b; k <= last && ok; ++k) ok = std::isfinite(d.temps(static_cast<Eigen::Index>(k), o));
             }
             if (!ok) continue;
             // running integrals per column and for the known part
@@ -74,13 +82,23 @@ std::vector<int> equation_error_start(const Network& net, const std::vector<Equa
               const auto k0 = static_cast<Eigen::Index>(k), k1 = k0 + 1;
               const double dt = rec.time_s[k + 1] - rec.time_s[k];
               const double s = rec.speed_rpm[k] / net.speed_ref_rpm;
+              const unsigned mask = d.inputs && !d.inputs->event_mask.empty() ? d.inputs->event_mask[k] : 0u;
+              auto present = [&](const Term& t) { return t.event < 0 || ((mask >> t.event) & 1u) != 0; };
+              // temperature of a link end or driven-term end over the interval's ends (ambient and
+              // boundaries are held over the interval, as the simulator does)
+              auto end_temp = [&](int o, Eigen::Index row) {
+                if (o == kAmbient) return rec.ambient_c[k];
+                if (is_boundary_end(o)) return d.inputs->boundary_c(k0, boundary_of_end(o));
+                return d.temps(row, o);
+              };
               for (const auto& l : net.links) {
                 if (l.a != i && l.b != i) continue;
                 const int o = l.a == i ? l.b : l.a;
-                const double f0 = (o == kAmbient ? rec.ambient_c[k] : d.temps(k0, o)) - d.temps(k0, i);
-                const double f1 = (o == kAmbient ? rec.ambient_c[k] : d.temps(k1, o)) - d.temps(k1, i);
+                const double f0 = end_temp(o, k0) - d.temps(k0, i);
+                const double f1 = end_temp(o, k1) - d.temps(k1, i);
                 const double area = 0.5 * (f0 + f1) * dt;
                 for (const auto& t : mode == Mode::Operating ? l.operating : l.cooling) {
+                  if (!present(t)) continue;
                   // g = v * s^(-e) for resistances (v = 1/p), v * s^e for conductances
                   const double sf = t.speed_exponent == 0.0 ? 1.0
                                     : std::pow(s, t.kind == TermKind::Resistance ? -t.speed_exponent : t.speed_exponent);
@@ -95,10 +113,15 @@ std::vector<int> equation_error_start(const Network& net, const std::vector<Equa
               for (const auto& src : net.sources) {
                 if (src.node != i) continue;
                 for (const auto& t : mode == Mode::Operating ? src.operating : src.cooling) {
+                  if (!present(t)) continue;
                   const double sf = t.speed_exponent == 0.0 ? 1.0 : std::pow(s, t.speed_exponent);
+                  // a driven term's heat is value x (T_hot - T_cold), averaged over the interval
+                  const double drive = t.driven ? 0.5 * (end_temp(t.hot, k0) - end_temp(t.cold, k0) + end_temp(t.hot, k1) -
+                                                         end_temp(t.cold, k1))
+                                                : 1.0;
                   const int c = col_of[static_cast<std::size_t>(t.param)];
-                  if (c >= 0) integ[c] += sf * dt;
-                  else known_integ += p[t.param] * sf * dt;
+                  if (c >= 0) integ[c] += sf * drive * dt;
+                  else known_integ += p[t.param] * sf * drive * dt;
                 }
               }
               if (d.extra) known_integ += (*d.extra)(k0, i) * dt;
@@ -249,7 +272,7 @@ bool fill_unmeasured_from_neighbours(const Network& net, Eigen::MatrixXd& temps)
     std::vector<int> nb;
     for (const auto& l : net.links) {
       const int other = l.a == k ? l.b : (l.b == k ? l.a : kAmbient);
-      if (other != kAmbient && measured[static_cast<std::size_t>(other)] &&
+      if (other >= 0 && measured[static_cast<std::size_t>(other)] &&
           std::find(nb.begin(), nb.end(), other) == nb.end())
         nb.push_back(other);
     }

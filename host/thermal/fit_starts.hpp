@@ -5,6 +5,7 @@
 // states from a recording row.
 #include "network.hpp"
 #include "recording.hpp"
+#include "simulator.hpp"
 
 #include <Eigen/Core>
 
@@ -22,6 +23,7 @@ struct EquationErrorInput {
   const Recording* rec;
   Eigen::MatrixXd temps;                // rows x nodes (measured or filled), NaN = unknown
   const Eigen::MatrixXd* extra = nullptr;
+  const RecordingInputs* inputs = nullptr;  // declared boundary/event columns (simulator.hpp), when the network has them
 };
 
 // Equation-error (integral) start for a set of parameters that enter linearly: solves for

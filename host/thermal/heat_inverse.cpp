@@ -436,11 +436,13 @@ InverseProblem make_inverse_problem(const Network& net, const Eigen::VectorXd& p
   p.ambient_c = rec.ambient_c;
   const int n = net.node_count();
   std::vector<int> rec_col, node_of;
+  std::vector<double> drift_k_per_h;
   for (const Measurement& m : net.measurements) {
     const int c = rec.channel_index(m.column);
     if (c < 0) continue;
     rec_col.push_back(c);
     node_of.push_back(m.node);
+    drift_k_per_h.push_back(m.drift_param >= 0 ? params[m.drift_param] : 0.0);
   }
   if (rec_col.empty())
     throw std::invalid_argument("heat inverse: none of the network's measured columns is in " + rec.source);
@@ -450,6 +452,10 @@ InverseProblem make_inverse_problem(const Network& net, const Eigen::VectorXd& p
   for (int j = 0; j < nm; ++j) {
     p.measured.col(j) = rec.temp_c.col(rec_col[j]);
     p.measure_map(j, node_of[j]) = 1.0;
+    // a drifting probe (network.hpp): its node's temperature is the reading minus the drift
+    if (drift_k_per_h[static_cast<std::size_t>(j)] != 0.0)
+      for (Eigen::Index k = 0; k < p.measured.rows(); ++k)
+        p.measured(k, j) -= drift_k_per_h[static_cast<std::size_t>(j)] * (rec.time_s[static_cast<std::size_t>(k)] - rec.time_s.front()) / 3600.0;
   }
   if (source_nodes.empty()) {
     for (const Source& s : net.sources)

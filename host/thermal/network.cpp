@@ -47,7 +47,7 @@ std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, co
   for (std::size_t i = 0; i < arr.size(); ++i) {
     const std::string w = where + "[" + std::to_string(i) + "]";
     const json& t = arr[i];
-    check_keys(t, {"resistance", "conductance", "power", "speed_exponent", "event"}, src, w);
+    check_keys(t, {"resistance", "conductance", "power", "speed_exponent", "event", "driven_by"}, src, w);
     Term term;
     int kinds = 0;
     std::string pname;
@@ -66,6 +66,21 @@ std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, co
         if (net.events[k] == ev) term.event = static_cast<int>(k);
       if (term.event < 0) bad(src, w, "unknown event column '" + ev + "' (declare it in 'events')");
     }
+    if (t.contains("driven_by")) {
+      if (link) bad(src, w, "'driven_by' belongs to source terms");
+      const json& d = t.at("driven_by");
+      if (!d.is_array() || d.size() != 2 || !d[0].is_string() || !d[1].is_string())
+        bad(src, w, "'driven_by' must be [\"hot node or ambient\", \"cold node or ambient\"]");
+      auto end = [&](const std::string& name) {
+        if (name == "ambient") return kAmbient;
+        const int i = net.node_index(name);
+        if (i < 0) bad(src, w, "'driven_by': unknown node '" + name + "'");
+        return i;
+      };
+      term.driven = true;
+      term.hot = end(d[0].get<std::string>());
+      term.cold = end(d[1].get<std::string>());
+    }
     out.push_back(term);
   }
   return out;
@@ -79,6 +94,10 @@ json terms_to_json(const Network& net, const std::vector<Term>& terms) {
     j[k] = net.params[static_cast<std::size_t>(t.param)].name;
     if (t.speed_exponent != 0.0) j["speed_exponent"] = t.speed_exponent;
     if (t.event >= 0) j["event"] = net.events[static_cast<std::size_t>(t.event)];
+    if (t.driven) {
+      auto end = [&](int i) { return i == kAmbient ? std::string("ambient") : net.nodes[static_cast<std::size_t>(i)].name; };
+      j["driven_by"] = {end(t.hot), end(t.cold)};
+    }
     arr.push_back(j);
   }
   return arr;
@@ -129,6 +148,20 @@ int Network::add_parameter(const Parameter& p) {
   return static_cast<int>(params.size()) - 1;
 }
 
+bool Network::has_driven_terms() const {
+  for (const auto& s : sources)
+    for (const auto* ts : {&s.operating, &s.cooling})
+      for (const auto& t : *ts)
+        if (t.driven) return true;
+  return false;
+}
+
+bool Network::has_drift() const {
+  for (const auto& m : measurements)
+    if (m.drift_param >= 0) return true;
+  return false;
+}
+
 std::vector<std::string> Network::param_names() const {
   std::vector<std::string> v;
   for (const auto& p : params) v.push_back(p.name);
@@ -167,6 +200,12 @@ void Network::validate() const {
       if (cooling && t.speed_exponent != 0.0 && operating_above_rpm == 0.0)
         bad(src, w + " (cooling)", "cooling-mode terms must have speed_exponent 0 (the speed is 0 there)");
       if (t.event < -1 || t.event >= static_cast<int>(events.size())) bad(src, w, "event index out of range");
+      if (t.driven) {
+        if (t.kind != TermKind::Power) bad(src, w, "only source (power) terms can be driven by a temperature difference");
+        for (int e : {t.hot, t.cold})
+          if (e != kAmbient && (e < 0 || e >= node_count())) bad(src, w, "'driven_by' end is not a node or ambient");
+        if (t.hot == t.cold) bad(src, w, "'driven_by' needs two different ends");
+      }
     }
   };
   if (events.size() > static_cast<std::size_t>(kMaxEvents)) bad(src, "events", "at most " + std::to_string(kMaxEvents) + " event columns");
@@ -204,6 +243,7 @@ void Network::validate() const {
   }
   for (const auto& m : measurements) {
     if (m.node < 0 || m.node >= node_count()) bad(src, "measurement '" + m.column + "'", "node out of range");
+    if (m.drift_param != -1) check_param(m.drift_param, "measurement '" + m.column + "' drift");
     for (const auto& b : boundaries)
       if (m.column == b) bad(src, "measurement '" + m.column + "'", "a declared boundary column is not a node's measurement");
     for (const auto& e : events)
@@ -321,10 +361,15 @@ Network network_from_json(const json& j, const std::string& src) {
     if (!ms.is_array()) bad(src, "measurements", "must be an array");
     for (std::size_t i = 0; i < ms.size(); ++i) {
       const std::string w = "measurements[" + std::to_string(i) + "]";
-      check_keys(ms[i], {"column", "node"}, src, w);
+      check_keys(ms[i], {"column", "node", "drift"}, src, w);
       Measurement m;
       m.column = get_string(ms[i], "column", src, w);
       m.node = node_ref(get_string(ms[i], "node", src, w), false, w);
+      if (ms[i].contains("drift")) {
+        const std::string d = get_string(ms[i], "drift", src, w);
+        m.drift_param = net.param_index(d);
+        if (m.drift_param < 0) bad(src, w, "unknown drift parameter '" + d + "'");
+      }
       net.measurements.push_back(m);
     }
   }
@@ -375,7 +420,11 @@ json network_to_json(const Network& net) {
     j["sources"].push_back(sj);
   }
   j["measurements"] = json::array();
-  for (const auto& m : net.measurements) j["measurements"].push_back({{"column", m.column}, {"node", node_name(m.node)}});
+  for (const auto& m : net.measurements) {
+    json mj{{"column", m.column}, {"node", node_name(m.node)}};
+    if (m.drift_param >= 0) mj["drift"] = net.params[static_cast<std::size_t>(m.drift_param)].name;
+    j["measurements"].push_back(mj);
+  }
   return j;
 }
 
@@ -468,8 +517,19 @@ NodeMatrices assemble(const Network& net, const Eigen::VectorXd& p, double speed
     const auto& src = net.sources[static_cast<std::size_t>(k)];
     m.source_to_node(src.node, k) = 1.0;
     double q = 0.0;
-    for (const auto& t : mode == Mode::Operating ? src.operating : src.cooling)
-      if (present(t)) q += term_value(t, p, s);
+    for (const auto& t : mode == Mode::Operating ? src.operating : src.cooling) {
+      if (!present(t)) continue;
+      if (!t.driven) {
+        q += term_value(t, p, s);
+        continue;
+      }
+      // heat g (T_hot - T_cold) at the source's node: -G gains -g at (node, hot), +g at (node, cold)
+      const double g = term_value(t, p, s);
+      if (t.hot == kAmbient) m.ambient_conductance[src.node] += g;
+      else m.G(src.node, t.hot) -= g;
+      if (t.cold == kAmbient) m.ambient_conductance[src.node] -= g;
+      else m.G(src.node, t.cold) += g;
+    }
     m.source_w[k] = q;
   }
   m.heat_w = m.source_to_node * m.source_w;

@@ -36,6 +36,16 @@
 // column is 1 (e.g. a conductance to the room while the lid is open). Both keep the model linear
 // and piecewise constant between samples, so the simulation stays exact.
 //
+// Two model terms beyond conduction and fixed heat, used by the effects the residual loop adds:
+//  * a source term may be driven by a temperature difference, {"power": "g", "speed_exponent": 1,
+//    "driven_by": ["rear_bearing", "housing"]}: heat g (w/w0)^e (T_rear_bearing - T_housing) W at
+//    the source's node (g in W/K; either end may be "ambient"). With ["n", "ambient"] at node n it
+//    is heat that grows (g > 0) or falls (g < 0) with the node's own rise. A difference that does
+//    not involve the heated node makes the system matrix non-symmetric; the simulator then takes
+//    the general matrix exponential instead of the symmetric modal form.
+//  * a measurement may drift, {"column": "T1", "node": "rear_bearing", "drift": "d_T1"}: the probe
+//    reads d_T1 [K/h] x the hours since the recording's first sample above its node.
+//
 // Augmented networks (e.g. a residual effect found later) are built by add_parameter() and by
 // pushing further Link/Source entries; call validate() afterwards.
 #include <Eigen/Core>
@@ -69,6 +79,9 @@ struct Term {
   TermKind kind = TermKind::Resistance;
   double speed_exponent = 0.0;  // value = p * (w/w0)^speed_exponent
   int event = -1;               // index into Network::events: present only while that column is 1; -1 = always
+  // Source terms only: the heat is value x (T_hot - T_cold), value in W/K (hot/cold: node or kAmbient).
+  bool driven = false;
+  int hot = 0, cold = 0;
 };
 
 constexpr int kAmbient = -1;
@@ -100,6 +113,7 @@ struct Node {
 struct Measurement {
   std::string column;           // recording channel name, e.g. "T1"
   int node = 0;
+  int drift_param = -1;         // K/h: the probe reads this x hours since the recording's first sample too high; -1 = none
 };
 
 struct Network {
@@ -116,6 +130,10 @@ struct Network {
   std::vector<std::string> events;      // event columns (0/1) that switch terms, bit k of an event mask
 
   bool has_inputs() const { return !boundaries.empty() || !events.empty(); }
+  // True when a source term is driven by a temperature difference (see above).
+  bool has_driven_terms() const;
+  // True when a measurement drifts.
+  bool has_drift() const;
   int node_count() const { return static_cast<int>(nodes.size()); }
   int param_count() const { return static_cast<int>(params.size()); }
   int param_index(const std::string& name) const;   // -1 if absent

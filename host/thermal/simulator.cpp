@@ -3,6 +3,7 @@
 
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
+#include <unsupported/Eigen/MatrixFunctions>
 
 #include <algorithm>
 #include <cmath>
@@ -19,6 +20,11 @@ ModalForm modal_form(const NodeMatrices& m) {
       throw std::invalid_argument("thermal network: node capacitance must be positive and finite");
   if (!m.G.allFinite()) throw std::invalid_argument("thermal network: a conductance is not finite (zero resistance?)");
   f.c_sqrt = m.capacitance.cwiseSqrt();
+  const double gscale = std::max(m.G.cwiseAbs().maxCoeff(), 1e-300);
+  if ((m.G - m.G.transpose()).cwiseAbs().maxCoeff() > 1e-14 * gscale) {
+    f.general = true;
+    return f;
+  }
   const Eigen::VectorXd inv = f.c_sqrt.cwiseInverse();
   const Eigen::MatrixXd S = inv.asDiagonal() * m.G * inv.asDiagonal();
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(S);
@@ -28,7 +34,28 @@ ModalForm modal_form(const NodeMatrices& m) {
   return f;
 }
 
+namespace {
+// Phi = exp(A dt) and Gamma = int_0^dt exp(A s) ds C^-1 from one exponential of the block matrix
+// [[A, I], [0, 0]] dt (Van Loan), for a non-symmetric G.
+StepMatrices general_step_matrices(const ModalForm& f, double dt) {
+  const Eigen::Index n = f.m.capacitance.size();
+  const Eigen::VectorXd cinv = f.m.capacitance.cwiseInverse();
+  Eigen::MatrixXd M = Eigen::MatrixXd::Zero(2 * n, 2 * n);
+  M.topLeftCorner(n, n) = -(cinv.asDiagonal() * f.m.G) * dt;
+  M.topRightCorner(n, n) = Eigen::MatrixXd::Identity(n, n) * dt;
+  const Eigen::MatrixXd E = M.exp();
+  StepMatrices s;
+  s.Phi = E.topLeftCorner(n, n);
+  s.Gamma = E.topRightCorner(n, n) * cinv.asDiagonal();
+  s.drive = s.Gamma * f.m.heat_w;
+  s.ambient_gain = s.Gamma * f.m.ambient_conductance;
+  s.boundary_gain = s.Gamma * f.m.boundary_conductance;
+  return s;
+}
+}  // namespace
+
 StepMatrices step_matrices(const ModalForm& f, double dt) {
+  if (f.general) return general_step_matrices(f, dt);
   const Eigen::Index n = f.lambda.size();
   Eigen::VectorXd e(n), g(n);
   for (Eigen::Index i = 0; i < n; ++i) {
@@ -169,7 +196,14 @@ Eigen::VectorXd steady_state_c(const Network& net, const Eigen::VectorXd& params
 
 Eigen::VectorXd poles_per_s(const Network& net, const Eigen::VectorXd& params, double speed) {
   const ModalForm f = modal_form(assemble(net, params, speed));
-  Eigen::VectorXd p = -f.lambda;
+  Eigen::VectorXd p;
+  if (f.general) {
+    // real parts of the eigenvalues of A = -C^-1 G
+    const Eigen::MatrixXd A = -(f.m.capacitance.cwiseInverse().asDiagonal() * f.m.G);
+    p = Eigen::EigenSolver<Eigen::MatrixXd>(A, false).eigenvalues().real();
+  } else {
+    p = -f.lambda;
+  }
   std::sort(p.data(), p.data() + p.size());
   return p;
 }

@@ -20,12 +20,16 @@
 
 namespace btsm::thermal {
 
-// Symmetric modal form of one speed's model.
+// Symmetric modal form of one speed's model. A network whose G is not symmetric (a source driven
+// by a temperature difference that does not involve its own node, network.hpp) has no such form:
+// `general` is then set, lambda/V stay empty, and the step matrices come from the matrix
+// exponential of A = -C^-1 G (exact as well, a little slower).
 struct ModalForm {
   NodeMatrices m;
   Eigen::VectorXd lambda;   // 1/s, eigenvalues of S (= -poles)
   Eigen::MatrixXd V;        // orthonormal eigenvectors of S
   Eigen::VectorXd c_sqrt;   // sqrt(C)
+  bool general = false;     // G not symmetric: lambda/V unused
 };
 ModalForm modal_form(const NodeMatrices& m);
 
