@@ -132,7 +132,7 @@ void draw_axes(cairo_t* cr, const Plot& p, const PanelLayout& l) {
   }
   set_colour(cr, kInk);
   cairo_rectangle(cr, b.x, b.y, b.w, b.h), cairo_stroke(cr);
-  text(cr, b.x + b.w / 2, b.y + b.h + 10 + kTickFont + 10 + kAxisLabelFont * 0.72, p.x_label, kAxisLabelFont, 0.5, 0);
+  text(cr, b.x + b.w / 2, b.y + b.h + 10 + kTickFont + 10 + kAxisLabelFont * 0.72, l.x_label, kAxisLabelFont, 0.5, 0);
   text(cr, l.area.x + 8 + kAxisLabelFont * 0.72, b.y + b.h / 2, l.y_label, kAxisLabelFont, 0.5, 0, true);
 }
 

@@ -130,6 +130,13 @@ std::vector<LegendEntry> legend_entries(const Plot& p, const std::map<std::strin
 
 }  // namespace
 
+std::string unit_style(std::string label) {
+  for (size_t at; (at = label.find("degC")) != std::string::npos;) label.replace(at, 4, "°C");
+  std::replace(label.begin(), label.end(), '[', '(');
+  std::replace(label.begin(), label.end(), ']', ')');
+  return label;
+}
+
 bool Rect::contains(const Rect& r) const {
   const double eps = 1e-9;
   return r.x >= x - eps && r.y >= y - eps && r.x + r.w <= x + w + eps && r.y + r.h <= y + h + eps;
@@ -198,7 +205,8 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
     const Plot& p = panels[i];
     PanelLayout& l = L.panels[i];
     double h = std::max(140.0, std::round(o.panel_height * std::max(0.1, p.height_weight)));
-    l.title = tm.fit(p.title, kTitleFont, o.width - 20.0);
+    l.title = tm.fit(unit_style(p.title), kTitleFont, o.width - 20.0);
+    l.x_label = tm.fit(unit_style(p.x_label), kAxisLabelFont, o.width - 20.0);
     l.title_y = y0 + 8 + kTitleFont;
 
     // Legend strip: entries flow left to right under the title and wrap at the canvas width.
@@ -218,7 +226,7 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
     h = std::max(h, top - y0 + 60 + bottom_margin);  // a long legend makes the panel taller, never the plot tiny
     l.area = Rect{0, y0, static_cast<double>(o.width), h};
     l.plot = Rect{left, top, o.width - left - right, y0 + h - bottom_margin - top};
-    l.y_label = tm.fit(p.y_label, kAxisLabelFont, l.plot.h);  // it runs along the plot's height
+    l.y_label = tm.fit(unit_style(p.y_label), kAxisLabelFont, l.plot.h);  // it runs along the plot's height
     for (const auto& m : p.markers)
       l.marker_px.push_back(usable(m.x, p.log_x) ? L.px(p, l, m.x) : NAN);
     y0 += h;

@@ -29,7 +29,8 @@ struct PanelLayout {
   Rect plot;              // the axes box
   std::string title;      // shortened with an ellipsis if it would not fit
   double title_y = 0;     // baseline
-  std::string y_label;    // shortened with an ellipsis if longer than the plot is high
+  std::string y_label;    // in the common unit style, shortened with an ellipsis if longer than the plot is high
+  std::string x_label;    // in the common unit style
   std::vector<LegendEntry> legend;
   AxisTicks x_ticks, y_ticks;  // x_ticks.lo/hi = the data range of the panel's x group
   std::vector<double> marker_px;  // x pixel of each marker inside the plot box (NaN if outside)
@@ -50,5 +51,9 @@ inline constexpr double kYInset = 5;
 inline constexpr double kTitleFont = 16, kLegendFont = 13, kTickFont = 12, kAxisLabelFont = 13, kMarkerFont = 12;
 
 FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions& options);
+
+// Labels in the common unit style whoever wrote them: "degC" -> "°C", a unit in brackets
+// "[K]" -> "(K)".
+std::string unit_style(std::string label);
 
 }  // namespace btsm::report

@@ -223,3 +223,12 @@ TEST(PlotStyle, AnIndexAxisHasWholeNumberTicks) {
     EXPECT_EQ(L.panels[0].x_ticks.labels[i].find('.'), std::string::npos) << L.panels[0].x_ticks.labels[i];
   }
 }
+
+TEST(PlotStyle, UnitsInOneStyleWhoeverWroteTheLabel) {
+  const FigureLayout L =
+      layout_figure({Plot{"Probe at 25 degC", "time [h]", "temperature [degC]", {model("a", {0, 1}, {0, 1})}}}, {});
+  EXPECT_EQ(L.panels[0].y_label, "temperature (°C)");
+  EXPECT_EQ(L.panels[0].x_label, "time (h)");
+  EXPECT_EQ(L.panels[0].title, "Probe at 25 °C");
+  EXPECT_EQ(unit_style("measured − model (K)"), "measured − model (K)");
+}
