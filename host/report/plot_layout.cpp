@@ -130,10 +130,12 @@ std::vector<LegendEntry> legend_entries(const Plot& p, const std::map<std::strin
 
 }  // namespace
 
-std::string unit_style(std::string label) {
+std::string unit_style(std::string label, bool axis) {
   for (size_t at; (at = label.find("degC")) != std::string::npos;) label.replace(at, 4, "°C");
-  std::replace(label.begin(), label.end(), '[', '(');
-  std::replace(label.begin(), label.end(), ']', ')');
+  if (axis) {
+    std::replace(label.begin(), label.end(), '[', '(');
+    std::replace(label.begin(), label.end(), ']', ')');
+  }
   return label;
 }
 
@@ -205,7 +207,7 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
     const Plot& p = panels[i];
     PanelLayout& l = L.panels[i];
     double h = std::max(140.0, std::round(o.panel_height * std::max(0.1, p.height_weight)));
-    l.title = tm.fit(unit_style(p.title), kTitleFont, o.width - 20.0);
+    l.title = tm.fit(unit_style(p.title, false), kTitleFont, o.width - 20.0);
     l.x_label = tm.fit(unit_style(p.x_label), kAxisLabelFont, o.width - 20.0);
     l.title_y = y0 + 8 + kTitleFont;
 

@@ -52,8 +52,8 @@ inline constexpr double kTitleFont = 16, kLegendFont = 13, kTickFont = 12, kAxis
 
 FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions& options);
 
-// Labels in the common unit style whoever wrote them: "degC" -> "°C", a unit in brackets
-// "[K]" -> "(K)".
-std::string unit_style(std::string label);
+// Labels in the common unit style whoever wrote them: "degC" -> "°C", and on an axis a unit in
+// brackets "[K]" -> "(K)".
+std::string unit_style(std::string label, bool axis = true);
 
 }  // namespace btsm::report

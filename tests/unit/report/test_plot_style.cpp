@@ -231,4 +231,5 @@ TEST(PlotStyle, UnitsInOneStyleWhoeverWroteTheLabel) {
   EXPECT_EQ(L.panels[0].x_label, "time (h)");
   EXPECT_EQ(L.panels[0].title, "Probe at 25 °C");
   EXPECT_EQ(unit_style("measured − model (K)"), "measured − model (K)");
+  EXPECT_EQ(unit_style("T[1] at 20 degC", false), "T[1] at 20 °C");  // a title keeps its brackets
 }
