@@ -71,8 +71,10 @@ void run_effect_suite(const SuiteArgs& a) {
   std::cout << rep.table_md;
   std::cerr << fmt::format("effect-suite: {} cases in {:.0f} s; {}/results.csv, results.json, table.md\n",
                            rep.results.size(), rep.wall_s, a.out);
+  // A case the loop gave no answer on is a result of the suite (counted in the table), not a
+  // failure of the suite: say which, and exit 0.
   for (const auto& r : rep.results)
-    if (r.verdict == "error") throw CommandError(kExitFailure, "case " + r.id + " gave no answer: " + r.error);
+    if (r.verdict == "error") std::cerr << "effect-suite: case " << r.id << " gave no answer: " << r.error << "\n";
 }
 
 }  // namespace

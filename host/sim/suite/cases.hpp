@@ -14,7 +14,9 @@
 //   coupled_heat             2..6 W/K x (w/w0) x a node difference (rear_bearing-housing,
 //                            housing-front_bearing, rear_bearing-front_bearing, housing-shaft;
 //                            thermally induced preload), heating one bearing
-//   extra_heat_input         3..10 W at w0 x (w/w0)^1 or ^2 at any node (windage, seals, motor);
+//   extra_heat_input         3..10 W at w0 x (w/w0)^1 or ^2 at the housing or the shaft, nodes
+//                            without a friction source (windage, seals, motor losses; at a
+//                            bearing w^1 is the paper's own qf3/qf4 term and not undeclared);
 //                            variant "unprobed shaft": 5..15 W at the shaft with channel 5
 //                            disabled, so the heated node has neither a source nor a probe
 //   sensor_lag               2..10 min on channel 1, 2, 3 or 5

@@ -79,6 +79,10 @@ TEST(EffectSuiteCases, StrengthsStayInTheDocumentedRanges) {
       const auto& e = c.effects[0];
       EXPECT_EQ(e.find("-" + c.nodes[0]), std::string::npos) << e;
       EXPECT_GE(param(c, "coupling_at_w0"), 2.0);
+    } else if (c.family == "extra_heat_input") {
+      // never at a bearing: there the paper's own w^1 source term would absorb it
+      EXPECT_TRUE(c.nodes[0] == "housing" || c.nodes[0] == "shaft") << c.id;
+      EXPECT_EQ(c.shaft_probe, c.variant != "unprobed shaft") << c.id;
     } else if (c.family == "sensor_lag") {
       EXPECT_GE(param(c, "tau"), 120.0);
       EXPECT_LE(param(c, "tau"), 600.0);
