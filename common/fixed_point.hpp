@@ -1,12 +1,14 @@
 // Fixed-point arithmetic for the firmware (ATmega328P has no FPU; float costs ~100 cycles per op and
 // its 24-bit mantissa is too coarse for a pole at 0.9981 iterated 17280 times a day).
 //
-// Two layers:
+// Three layers:
 //   1. Raw helpers on int64_t: shift_right_round(), div_round(), rescale(), saturate<T>(). Every
 //      rounding is named (Rounding::k...), every narrowing saturates and reports it.
 //   2. Fixed<Storage, FracBits>: a Q format over int8_t/int16_t/int32_t storage (value = raw / 2^F)
 //      with from_double/from_int/to_double, and free functions fx_mul/fx_div/fx_convert/fx_add/fx_sub
 //      that take the result type as a template argument so no precision is lost implicitly.
+//   3. 32-bit kernels for the MCU's sample path (mul_hi_round, frac_q32, isqrt32, sqrt_mul, ...):
+//      no int64 division and no float, see their section below.
 //
 // Errors are reported through an optional `FxStatus*` that is STICKY: it is only ever written when
 // something went wrong, so one status variable can collect a whole computation. The value returned
@@ -289,6 +291,215 @@ template <class T>
 inline T fx_sub(T a, T b, FxStatus* st = nullptr) {
   return T::from_raw(saturate<typename T::storage_type>(
       static_cast<int64_t>(a.raw()) - static_cast<int64_t>(b.raw()), st));
+}
+
+// ---- 32-bit kernels for the MCU's sample path --------------------------------------------------
+// The ATmega328P has a hardware 8x8 multiplier but no divider: a 32x32 -> 64 product is a few
+// hundred cycles, a 64-bit division a few thousand, a float operation ~100-300 plus the soft-float
+// library in flash. These kernels keep the per-sample arithmetic (ratiometric resistance, RTD
+// inverse, Kalman filter) in integers: products through the high word of a 64-bit product, the
+// rare quotients by shift-and-subtract loops that need no libgcc 64-bit division.
+
+// round(u * f / 2^32), ties up: the high word of the 64-bit product. With f a 32-bit fraction
+// (f / 2^32 in [0, 1)) this is u scaled by that fraction, rounded to nearest. On the AVR sixteen
+// hardware 8 x 8 multiplications in place (~110 cycles, no stack frame): avr-gcc 5.4 compiles the
+// portable form into a libgcc __umulsidi3 call whose 64-bit result goes through the stack
+// (~250 cycles with the frame). The host never compiles the assembly:
+// tests/simavr/sim/avr_numeric_test.cpp runs it on the simulated ATmega328P against exact results.
+// Out of line on the AVR: 180 bytes of code, called from the whole sample path.
+#if defined(__AVR__)
+__attribute__((noinline))
+#endif
+inline uint32_t mul_hi_round(uint32_t u, uint32_t f) {
+#if defined(__AVR__)
+  uint32_t hi, lo;  // product bytes P7..P4 and P3..P0
+  uint8_t zero;
+  // Diagonal products first (each a register pair), 2^31 added (the rounding), then the cross
+  // products u_i f_j at byte i + j with the carry run up to P7. r1 (the compiler's zero register)
+  // is the multiplier's high byte: cleared at the end.
+  __asm__(
+      "clr  %[z]"            "\n\t"
+      "mul  %A[u], %A[f]"    "\n\t"  // u0 f0 -> P1:P0
+      "movw %A[lo], r0"      "\n\t"
+      "mul  %B[u], %B[f]"    "\n\t"  // u1 f1 -> P3:P2
+      "movw %C[lo], r0"      "\n\t"
+      "mul  %C[u], %C[f]"    "\n\t"  // u2 f2 -> P5:P4
+      "movw %A[hi], r0"      "\n\t"
+      "mul  %D[u], %D[f]"    "\n\t"  // u3 f3 -> P7:P6
+      "movw %C[hi], r0"      "\n\t"
+      "ldi  %[z], 0x80"      "\n\t"  // + 2^31
+      "add  %D[lo], %[z]"    "\n\t"
+      "clr  %[z]"            "\n\t"
+      "adc  %A[hi], %[z]"    "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %A[u], %B[f]"    "\n\t"  // u0 f1 -> P2:P1
+      "add  %B[lo], r0"      "\n\t"
+      "adc  %C[lo], r1"      "\n\t"
+      "adc  %D[lo], %[z]"    "\n\t"
+      "adc  %A[hi], %[z]"    "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %B[u], %A[f]"    "\n\t"  // u1 f0 -> P2:P1
+      "add  %B[lo], r0"      "\n\t"
+      "adc  %C[lo], r1"      "\n\t"
+      "adc  %D[lo], %[z]"    "\n\t"
+      "adc  %A[hi], %[z]"    "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %A[u], %C[f]"    "\n\t"  // u0 f2 -> P3:P2
+      "add  %C[lo], r0"      "\n\t"
+      "adc  %D[lo], r1"      "\n\t"
+      "adc  %A[hi], %[z]"    "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %C[u], %A[f]"    "\n\t"  // u2 f0 -> P3:P2
+      "add  %C[lo], r0"      "\n\t"
+      "adc  %D[lo], r1"      "\n\t"
+      "adc  %A[hi], %[z]"    "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %A[u], %D[f]"    "\n\t"  // u0 f3 -> P4:P3
+      "add  %D[lo], r0"      "\n\t"
+      "adc  %A[hi], r1"      "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %D[u], %A[f]"    "\n\t"  // u3 f0 -> P4:P3
+      "add  %D[lo], r0"      "\n\t"
+      "adc  %A[hi], r1"      "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %B[u], %C[f]"    "\n\t"  // u1 f2 -> P4:P3
+      "add  %D[lo], r0"      "\n\t"
+      "adc  %A[hi], r1"      "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %C[u], %B[f]"    "\n\t"  // u2 f1 -> P4:P3
+      "add  %D[lo], r0"      "\n\t"
+      "adc  %A[hi], r1"      "\n\t"
+      "adc  %B[hi], %[z]"    "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %B[u], %D[f]"    "\n\t"  // u1 f3 -> P5:P4
+      "add  %A[hi], r0"      "\n\t"
+      "adc  %B[hi], r1"      "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %D[u], %B[f]"    "\n\t"  // u3 f1 -> P5:P4
+      "add  %A[hi], r0"      "\n\t"
+      "adc  %B[hi], r1"      "\n\t"
+      "adc  %C[hi], %[z]"    "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %C[u], %D[f]"    "\n\t"  // u2 f3 -> P6:P5
+      "add  %B[hi], r0"      "\n\t"
+      "adc  %C[hi], r1"      "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"
+      "mul  %D[u], %C[f]"    "\n\t"  // u3 f2 -> P6:P5
+      "add  %B[hi], r0"      "\n\t"
+      "adc  %C[hi], r1"      "\n\t"
+      "adc  %D[hi], %[z]"    "\n\t"  // no carry out: u f + 2^31 < 2^64
+      "clr  __zero_reg__"
+      : [hi] "=&r"(hi), [lo] "=&r"(lo), [z] "=&d"(zero)
+      : [u] "r"(u), [f] "r"(f)
+      : "r0");
+  (void)lo;
+  return hi;
+#elif defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+  union {
+    uint64_t v;
+    uint32_t w[2];  // w[0] low, w[1] high
+  } p;
+  p.v = static_cast<uint64_t>(u) * f;
+  return p.w[1] + (p.w[0] >> 31);
+#else
+  const uint64_t v = static_cast<uint64_t>(u) * f;
+  return static_cast<uint32_t>(v >> 32) + static_cast<uint32_t>((v >> 31) & 1U);
+#endif
+}
+
+// round(a * 2^32 / b) for a < b (b > 0): a ratio below 1 as a 32-bit fraction, by 32 steps of
+// shift-and-subtract (no division instruction, no 64-bit libgcc division), ties up; 0xFFFFFFFF
+// when the rounded ratio would be 1.
+inline uint32_t frac_q32(uint32_t a, uint32_t b) {
+  uint32_t q = 0, r = a;
+  for (uint8_t i = 0; i < 32; ++i) {
+    const bool carry = (r & 0x80000000UL) != 0;  // 2r >= 2^32 > b
+    r <<= 1;
+    q <<= 1;
+    if (carry || r >= b) {
+      r -= b;
+      q |= 1U;
+    }
+  }
+  // Round: remainder r / b >= 1/2.
+  if ((r & 0x80000000UL) != 0 || (r << 1) >= b) q = q == 0xFFFFFFFFUL ? q : q + 1U;
+  return q;
+}
+
+// floor(sqrt(v)), bit by bit (16 steps).
+inline uint16_t isqrt32(uint32_t v) {
+  uint32_t root = 0, bit = 1UL << 30;
+  while (bit > v) bit >>= 2;
+  while (bit != 0) {
+    if (v >= root + bit) {
+      v -= root + bit;
+      root = (root >> 1) + bit;
+    } else {
+      root >>= 1;
+    }
+    bit >>= 2;
+  }
+  return static_cast<uint16_t>(root);
+}
+
+// v shifted left (by the count returned in *shift) until bit 31 is set; v > 0.
+__attribute__((noinline)) inline uint32_t normalize(uint32_t v, uint8_t* shift) {
+  uint8_t k = 0;
+  while ((v & 0x80000000UL) == 0) v <<= 1, ++k;
+  *shift = k;
+  return v;
+}
+
+// v 2^sh, rounded to nearest for sh < 0 (ties up: the last bit shifted out), saturated at
+// 0xFFFFFFFF for sh > 0. Out of line: variable shifts are bit loops on the AVR.
+__attribute__((noinline)) inline uint32_t shift_round_sat(uint32_t v, int8_t sh) {
+  for (; sh > 0; --sh) {
+    if (v & 0x80000000UL) return 0xFFFFFFFFUL;
+    v <<= 1;
+  }
+  uint32_t last = 0;
+  for (; sh < 0; ++sh) {
+    last = v & 1U;
+    v >>= 1;
+  }
+  return v + last;
+}
+
+// v shifted left by an even count (returned in *shift) into [2^30, 2^32); v > 0.
+__attribute__((noinline)) inline uint32_t normalize_even(uint32_t v, uint8_t* shift) {
+  uint8_t k = 0;
+  while (v < 0x40000000UL) v <<= 2, k = static_cast<uint8_t>(k + 2);
+  *shift = k;
+  return v;
+}
+
+// sqrt(a b) for a, b > 0 (a b < 2^64) to 2^-15 relative (floor), from the 16-bit integer roots of
+// the two operands normalised into [2^30, 2^32): no 64-bit radicand. Enough for the Kalman
+// filter's gates and steady state (a relative error of 3e-5 in a 5-sigma gate or in the steady
+// gain moves the estimate by far less than its 4 uK resolution).
+inline uint32_t sqrt_mul(uint32_t a, uint32_t b) {
+  uint8_t i, j;
+  const uint32_t sa = isqrt32(normalize_even(a, &i)), sb = isqrt32(normalize_even(b, &j));
+  // sqrt(a b) = sa sb / 2^((i + j) / 2), sa sb < 2^32.
+  return shift_round_sat(sa * sb, static_cast<int8_t>(-((i + j) >> 1)));
 }
 
 }  // namespace fx

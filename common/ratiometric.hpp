@@ -23,6 +23,8 @@
 
 #include <stdint.h>
 
+#include "fixed_point.hpp"
+
 namespace btsm {
 
 const uint32_t kAdcFullScaleCode = 0xFFFFFFUL;
@@ -138,6 +140,28 @@ inline bool make_calibration(Real raw_zero, Real raw_known, Real known_ohm, Real
   cal.offset_ratio = raw_zero;
   cal.gain_correction = (known_ohm / r_ref_ohm) / span;
   return true;
+}
+
+// ---- Fixed point (the MCU) ---------------------------------------------------------------------
+// The same unipolar conversion R = R_ref code / (2^24 G) without float: R in ohm x 2^16 (uint32,
+// resolution 15 uohm, i.e. ~4 uK of a Pt1000, up to 65535 ohm), R_ref in ohm x 2^16 from the
+// configuration's milliohms. code 2^(8 - log2 G) < 2^32 for every code and gain, so the quotient is
+// one 32x32 product whose high word is the result, rounded once to nearest: exactly
+// round(R_ref_q16 code / 2^(24 + log2 G)) (tests/unit/common_numeric/ratiometric_test.cpp).
+
+// R_ref in ohm x 2^16 from milliohms, nearest (mohm < 65536000, i.e. R_ref < 65536 ohm):
+// mohm x 65.536 as 65 mohm + mohm x 0.536, the fraction as a 32-bit constant through one product.
+// The exact value mohm 8192 / 125 is a multiple of 1/125, at least 0.004 from a rounding tie, and
+// the constant's error is below 0.002 over the range: the rounding is the exact value's.
+inline uint32_t ohm_q16_from_milliohm(uint32_t mohm) {
+  return mohm * 65U + fx::mul_hi_round(mohm, 2302102471UL);  // 0.536 x 2^32 = 2302102470.66
+}
+
+// R in ohm x 2^16 of a unipolar 24-bit code at gain 2^gain_log2 (gain_log2 = the AD7794 gain code,
+// 0..7), nearest. No checks: code <= kAdcFullScaleCode (the rails are the caller's, as in
+// code_to_resistance).
+inline uint32_t code_to_ohm_q16(uint32_t code, uint8_t gain_log2, uint32_t r_ref_q16) {
+  return fx::mul_hi_round(code << (8U - gain_log2), r_ref_q16);
 }
 
 // Ideal (noise-free, uncalibrated) code for a probe resistance, rounded to nearest and clamped

@@ -23,7 +23,8 @@
 
 #include <math.h>
 #include <stdint.h>
-#include <string.h>
+
+#include "fixed_point.hpp"
 
 #if defined(__AVR__)
 #include <avr/pgmspace.h>
@@ -231,90 +232,130 @@ inline RtdResult<Real> rtd_temperature(const RtdCoefficients<Real>& k,
   return RtdInverse<Real>(k).temperature(r_ohm);
 }
 
-// ---- Fast Pt1000 inverse for the MCU ----------------------------------------------------------
+// ---- Pt1000 inverse for the MCU, in fixed point --------------------------------------------------
 //
-// t(R) for the IEC 60751 Pt1000 as a piecewise quadratic over R in [512, 2048) ohm, i.e.
-// -118 ... +275 degC, which holds every temperature a spindle probe sees; any other R (and NaN)
-// goes to the exact RtdInverse (range errors included). The segments are the float's own grid:
-// every R in [512, 2048) has the sign/exponent byte 0x44, the next 5 bits (exponent LSB and top 4
-// mantissa bits) select one of 32 segments of 1/16 binade (32 ohm below 1024 ohm, 64 ohm above),
-// and the remaining 19 mantissa bits are the offset from the segment centre in units of the
-// binade's ulp (s, exact in float). So a conversion is t = a0 + s (a1 + s a2): one int-to-float
-// conversion, two multiply-adds and a 12-byte table read, no division and no square root (on the
-// ATmega328P ~650 cycles instead of ~1550 for RtdInverse's sqrt + division path).
-// The coefficients interpolate the exact inverse (double) at the three Chebyshev nodes of each
-// segment (near-minimax): fit error <= 9.2e-6 degC, and with float evaluation <= 2.3e-5 degC over
-// -40...150 degC (RtdInverse<float>: 1.9e-5). tests/unit/common_numeric/rtd_test.cpp recomputes
-// every coefficient from the exact inverse and measures the error over the whole table range.
-namespace detail_rtd {
-struct QuadSegment {
-  float a0;  // t at the segment centre, degC
-  float a1;  // degC per ulp
-  float a2;  // degC per ulp^2
+// t(R) for the IEC 60751 Pt1000 from R in ohm x 2^16 (the acquisition's fixed-point resistance,
+// common/ratiometric.hpp code_to_ohm_q16) to degC in 1/256 mK (the unit of the MCU's Kalman filter,
+// kKalmanFixPerK per kelvin), as a piecewise quadratic over R in [512, 4096) ohm, i.e.
+// -118.3 ... +850 degC: every temperature the IEC range holds above -118 degC. No float, no division,
+// no square root: two 32x32 products (fx::mul_hi_round) and a 12-byte table read.
+// Segments: 16 per binade ([512, 1024), [1024, 2048), [2048, 4096) ohm: 32, 64 and 128 ohm wide),
+// selected by the bit length of R and its next four bits. With x = (R - start) / width in [0, 1)
+// as the 32-bit fraction u (exact: the bits of R below the segment's),
+//   t = d0 + x (d1 + x d2)   evaluated as   t = d0 + (mulhi(u, D1 + mulhi(u, D2)) + 128) / 256
+// with D1 = 256 d1, D2 = 256 d2 (mulhi(a, b) = round(a b / 2^32)); d1, d2 > 0 (t(R) rises and is
+// convex), so everything is unsigned. The quadratic interpolates the exact inverse (double) at the
+// three Chebyshev nodes of each segment (near-minimax): fit error <= 9.2e-6 degC below 2048 ohm
+// (297 degC), 2.3e-4 degC above; with the integer evaluation 1.2e-5 degC below 2048 ohm and
+// 1.1e-5 degC over -40...150 degC (the float table it replaced: 2.3e-5 degC there).
+// tests/unit/common_numeric/rtd_test.cpp recomputes every coefficient from the exact inverse and
+// measures the error over the whole table. Below 512 ohm the result is kBelowRange (the firmware
+// reports a short), above R(850.02 degC) kAboveRange (open).
+struct Pt1000FixedResult {
+  RtdStatus status;
+  int32_t t;  // degC x 256000 (1/256 mK); 0 unless status == kOk
+  bool ok() const { return status == RtdStatus::kOk; }
 };
-const uint8_t kPt1000Segments = 32;
-const uint8_t kPt1000TableExponentByte = 0x44;  // R in [512, 2048): float bits 0x44000000..0x44FFFFFF
-const int32_t kPt1000SegmentHalfUlps = 0x40000;  // half a segment: 2^18 ulps
 
-inline const QuadSegment* pt1000_segments() {
-  static const QuadSegment kTable[kPt1000Segments]
+namespace detail_rtd {
+struct QuadSegmentFixed {
+  int32_t d0;   // t at the segment start, 1/256 mK
+  uint32_t d1;  // 256 x slope x width, 1/256 mK
+  uint32_t d2;  // 256 x curvature x width^2 / 2, 1/256 mK
+};
+const uint8_t kPt1000FixedSegments = 48;
+const uint32_t kPt1000FixedMinQ16 = 512UL << 16;      // 512 ohm: -118.31 degC
+const uint32_t kPt1000FixedMaxQ16 = 255909545UL;      // R(850 degC + kRtdInverseMarginC) x 2^16
+
+inline const QuadSegmentFixed* pt1000_fixed_segments() {
+  static const QuadSegmentFixed kTable[kPt1000FixedSegments]
 #if defined(__AVR__)
       PROGMEM
 #endif
       = {
-      {-118.313263f, 1.49221105e-05f, 5.86486494e-14f},  // R from 512 ohm
-      {-110.473831f, 1.49823927e-05f, 5.63399594e-14f},  // R from 544 ohm
-      {-102.603424f, 1.50402893e-05f, 5.40989982e-14f},  // R from 576 ohm
-      {-94.7032776f, 1.50958767e-05f, 5.19373532e-14f},  // R from 608 ohm
-      {-86.7745667f, 1.5149245e-05f, 4.98663441e-14f},  // R from 640 ohm
-      {-78.8184433f, 1.52004932e-05f, 4.78969789e-14f},  // R from 672 ohm
-      {-70.8359833f, 1.5249735e-05f, 4.60399134e-14f},  // R from 704 ohm
-      {-62.8282013f, 1.52970933e-05f, 4.43054271e-14f},  // R from 736 ohm
-      {-54.7960625f, 1.53427009e-05f, 4.27034134e-14f},  // R from 768 ohm
-      {-46.7404442f, 1.53867022e-05f, 4.12433759e-14f},  // R from 800 ohm
-      {-38.6621437f, 1.5429252e-05f, 3.99344254e-14f},  // R from 832 ohm
-      {-30.5618839f, 1.54705122e-05f, 3.878531e-14f},  // R from 864 ohm
-      {-22.4402943f, 1.55106554e-05f, 3.78044492e-14f},  // R from 896 ohm
-      {-14.2979155f, 1.55498619e-05f, 3.69999577e-14f},  // R from 928 ohm
-      {-6.13518906f, 1.55883208e-05f, 3.63797127e-14f},  // R from 960 ohm
-      {2.04754519f, 1.56262668e-05f, 3.61060736e-14f},  // R from 992 ohm
-      {14.3589458f, 3.13667806e-05f, 1.45999478e-13f},  // R from 1024 ohm
-      {30.8444653f, 3.15210018e-05f, 1.48163599e-13f},  // R from 1088 ohm
-      {47.411438f, 3.16775222e-05f, 1.50381728e-13f},  // R from 1152 ohm
-      {64.0610886f, 3.18363964e-05f, 1.52655761e-13f},  // R from 1216 ohm
-      {80.7946625f, 3.19976862e-05f, 1.5498769e-13f},  // R from 1280 ohm
-      {97.6134491f, 3.21614534e-05f, 1.57379589e-13f},  // R from 1344 ohm
-      {114.518753f, 3.232776e-05f, 1.59833653e-13f},  // R from 1408 ohm
-      {131.511932f, 3.2496675e-05f, 1.62352174e-13f},  // R from 1472 ohm
-      {148.59436f, 3.26682639e-05f, 1.64937535e-13f},  // R from 1536 ohm
-      {165.767487f, 3.28425995e-05f, 1.67592245e-13f},  // R from 1600 ohm
-      {183.03273f, 3.30197581e-05f, 1.70318946e-13f},  // R from 1664 ohm
-      {200.391617f, 3.31998126e-05f, 1.73120388e-13f},  // R from 1728 ohm
-      {217.845673f, 3.33828466e-05f, 1.75999487e-13f},  // R from 1792 ohm
-      {235.3965f, 3.35689401e-05f, 1.78959278e-13f},  // R from 1856 ohm
-      {253.045715f, 3.37581841e-05f, 1.82002972e-13f},  // R from 1920 ohm
-      {270.794983f, 3.39506623e-05f, 1.85133931e-13f},  // R from 1984 ohm
+      {-31288570L, 511663278UL, 1056520UL},  // R from 512 ohm
+      {-29285762L, 513776168UL, 1014930UL},  // R from 544 ohm
+      {-27274862L, 515805849UL, 974561UL},  // R from 576 ohm
+      {-25256192L, 517754764UL, 935620UL},  // R from 608 ohm
+      {-23230061L, 519625769UL, 898312UL},  // R from 640 ohm
+      {-21196766L, 521422132UL, 862835UL},  // R from 672 ohm
+      {-19156593L, 523147516UL, 829381UL},  // R from 704 ohm
+      {-17109811L, 524805968UL, 798136UL},  // R from 736 ohm
+      {-15056672L, 526401904UL, 769276UL},  // R from 768 ohm
+      {-12997412L, 527940099UL, 742975UL},  // R from 800 ohm
+      {-10932246L, 529425669UL, 719395UL},  // R from 832 ohm
+      {-8861368L, 530864058UL, 698694UL},  // R from 864 ohm
+      {-6784953L, 532261025UL, 681024UL},  // R from 896 ohm
+      {-4703149L, 533622634UL, 666532UL},  // R from 928 ohm
+      {-2616083L, 534955239UL, 655359UL},  // R from 960 ohm
+      {-523854L, 536264036UL, 650429UL},  // R from 992 ohm
+      {1573470L, 1075124295UL, 2630093UL},  // R from 1024 ohm
+      {5783451L, 1080384351UL, 2669078UL},  // R from 1088 ohm
+      {10014132L, 1085722373UL, 2709036UL},  // R from 1152 ohm
+      {14265820L, 1091140308UL, 2750002UL},  // R from 1216 ohm
+      {18538833L, 1096640167UL, 2792010UL},  // R from 1280 ohm
+      {22833493L, 1102224038UL, 2835099UL},  // R from 1344 ohm
+      {27150134L, 1107894081UL, 2879307UL},  // R from 1408 ohm
+      {31489096L, 1113652535UL, 2924677UL},  // R from 1472 ohm
+      {35850730L, 1119501723UL, 2971250UL},  // R from 1536 ohm
+      {40235394L, 1125444052UL, 3019074UL},  // R from 1600 ohm
+      {44643457L, 1131482020UL, 3068193UL},  // R from 1664 ohm
+      {49075297L, 1137618221UL, 3118660UL},  // R from 1728 ohm
+      {53531305L, 1143855347UL, 3170525UL},  // R from 1792 ohm
+      {58011879L, 1150196196UL, 3223844UL},  // R from 1856 ohm
+      {62517431L, 1156643675UL, 3278674UL},  // R from 1920 ohm
+      {67048382L, 1163200806UL, 3335076UL},  // R from 1984 ohm
+      {71605184L, 2339674565UL, 13691398UL},  // R from 2048 ohm
+      {80798060L, 2367053438UL, 14183623UL},  // R from 2176 ohm
+      {90099810L, 2395416418UL, 14706065UL},  // R from 2304 ohm
+      {99514396L, 2424823902UL, 15261387UL},  // R from 2432 ohm
+      {109046028L, 2455341604UL, 15852560UL},  // R from 2560 ohm
+      {118699181L, 2487041178UL, 16482912UL},  // R from 2688 ohm
+      {128478627L, 2520000920UL, 17156177UL},  // R from 2816 ohm
+      {138389455L, 2554306586UL, 17876557UL},  // R from 2944 ohm
+      {148437109L, 2590052330UL, 18648804UL},  // R from 3072 ohm
+      {158627415L, 2627341791UL, 19478298UL},  // R from 3200 ohm
+      {168966629L, 2666289356UL, 20371165UL},  // R from 3328 ohm
+      {179461475L, 2707021642UL, 21334394UL},  // R from 3456 ohm
+      {190119200L, 2749679225UL, 22376002UL},  // R from 3584 ohm
+      {200947633L, 2794418682UL, 23505217UL},  // R from 3712 ohm
+      {211955248L, 2841415015UL, 24732716UL},  // R from 3840 ohm
+      {223151247L, 2890864534UL, 26070905UL},  // R from 3968 ohm
   };
   return kTable;
 }
 }  // namespace detail_rtd
 
-inline RtdResult<float> pt1000_temperature_fast(float r_ohm) {
+inline Pt1000FixedResult pt1000_temperature_q(uint32_t r_q16) {
   using namespace detail_rtd;
-  uint32_t bits;
-  memcpy(&bits, &r_ohm, sizeof bits);
-  if (static_cast<uint8_t>(bits >> 24) != kPt1000TableExponentByte) {
-    return RtdInverse<float>(iec60751<float>(1000.0f)).temperature(r_ohm);
+  Pt1000FixedResult r;
+  r.t = 0;
+  if (r_q16 < kPt1000FixedMinQ16) {
+    r.status = RtdStatus::kBelowRange;
+    return r;
   }
-  const uint8_t seg = static_cast<uint8_t>(static_cast<uint8_t>(bits >> 16) >> 3);
-  const float s = static_cast<float>(static_cast<int32_t>(bits & 0x7FFFFUL) - kPt1000SegmentHalfUlps);
-  const QuadSegment* q = pt1000_segments() + seg;
+  if (r_q16 > kPt1000FixedMaxQ16) {
+    r.status = RtdStatus::kAboveRange;
+    return r;
+  }
+  // R normalised into [2^30, 2^31) by 5 - b left shifts, b the binade ([512 2^b, 1024 2^b) ohm):
+  // then bits 29..26 are the segment and the 26 bits below the position in it.
+  uint32_t v = r_q16;
+  uint8_t b = 5;
+  while (v < 0x40000000UL) v <<= 1, --b;
+  const uint8_t k = static_cast<uint8_t>(static_cast<uint8_t>(v >> 24) >> 2) & 15U;
+  const uint32_t u = v << 6;  // x as a 32-bit fraction (the segment bits shift out)
+  const QuadSegmentFixed* q = pt1000_fixed_segments() + (16U * b + k);
 #if defined(__AVR__)
-  const float a0 = pgm_read_float(&q->a0), a1 = pgm_read_float(&q->a1), a2 = pgm_read_float(&q->a2);
+  const int32_t d0 = static_cast<int32_t>(pgm_read_dword(&q->d0));
+  const uint32_t d1 = pgm_read_dword(&q->d1), d2 = pgm_read_dword(&q->d2);
 #else
-  const float a0 = q->a0, a1 = q->a1, a2 = q->a2;
+  const int32_t d0 = q->d0;
+  const uint32_t d1 = q->d1, d2 = q->d2;
 #endif
-  return good<float>(a0 + s * (a1 + s * a2));
+  r.status = RtdStatus::kOk;
+  r.t = d0 + static_cast<int32_t>((fx::mul_hi_round(u, d1 + fx::mul_hi_round(u, d2)) + 128U) >> 8);
+  return r;
 }
 
 }  // namespace btsm

@@ -30,7 +30,7 @@ struct AcquisitionSetup {
   uint8_t fs = 10;                 // AD7794 FS code of measurement conversions (10 = 16.7 Hz)
   uint8_t gain_code = 2;           // PGA gain code (2 = x4: 0..1.7 kOhm with R_ref 6.8 kOhm)
   uint8_t enabled_mask = 0x1F;     // bit j = channel j (AIN j+1) is measured
-  float r_ref_ohm = 6800.0f;       // ohm, reference resistor on REFIN1
+  uint32_t r_ref_milliohm = 6800000;  // mOhm, reference resistor on REFIN1 (< 65536 ohm)
   uint16_t recalibrate_sweeps = 720;  // sweeps between internal recalibrations (0 = never)
   // Open-wire (burnout) checks per sweep, 1..5, rotating over the enabled channels: with 2 and
   // five channels every channel is checked at least every third sweep, so a broken sense lead is
@@ -45,7 +45,7 @@ struct AcquisitionSetup {
 struct ChannelReading {
   uint8_t faults;   // 0 = good reading
   uint32_t code;    // raw 24-bit conversion result
-  float r_ohm;      // ratiometric resistance, valid when faults == 0
+  uint32_t r_q16;   // ratiometric resistance, ohm x 2^16, valid when faults == 0
 };
 
 struct AcquisitionCounters {
@@ -55,23 +55,54 @@ struct AcquisitionCounters {
   uint16_t missing;        // identification failures (no chip answering)
 };
 
+namespace detail_acq {
+// The acquisition's scalar state. All zero after construction but for the entropy seed: a base
+// class value-initialised by Acquisition's constructor, which the AVR build turns into one clearing
+// loop instead of a store per member (the module's App is a static object built at start-up).
+struct AcquisitionScalars {
+  enum State : uint8_t {
+    kStart, kResetWait, kMissing, kCalStart, kCalZeroWait, kCalFullWait, kIdle, kConvStart,
+    kConvWait, kBurnWait,
+  };
+  AcquisitionCounters counters_;
+  uint32_t mark_;
+  uint32_t entropy_;
+  uint16_t timeout_ms_;
+  uint16_t last_config_;
+  uint16_t sweeps_since_cal_;
+  State state_;                // kStart
+  uint8_t channel_;
+  uint8_t burnout_due_;        // bit j: channel j gets its open-wire check this sweep
+  uint8_t burnout_next_;       // where the next sweep's checks start
+  uint8_t open_latched_;       // bit j: channel j's last open-wire check found it open
+  uint8_t unchecked_;          // bit j: channel j has had no open-wire check since configure()
+  bool burnout_on_;            // the chip's configuration has the burnout currents on
+  AdcChip chip_;               // kNone
+  bool calibrated_;
+  bool sweep_requested_;
+  bool sweep_ready_;
+};
+static_assert(AcquisitionScalars::kStart == 0 && static_cast<uint8_t>(AdcChip::kNone) == 0,
+              "the zero state must be the initial one");
+}  // namespace detail_acq
+
 template <class Spi>
-class Acquisition {
+class Acquisition : private detail_acq::AcquisitionScalars {
  public:
   static constexpr uint8_t kChannels = wire::kChannels;
   static constexpr uint8_t kBurnoutFs = 1;               // 470 Hz, 4 ms settling
   static constexpr uint32_t kBurnoutOpenCode = 0xFFF000;  // at/above: driven to full scale
-  static constexpr float kShortBelowOhm = 500.0f;         // PT1000 at -125 degC is 509 ohm
+  static constexpr uint32_t kShortBelowQ16 = 500UL << 16; // 500 ohm: a PT1000 at -125 degC is 509 ohm
   static constexpr uint16_t kRetryMs = 1000;              // chip missing: identify again after
   static constexpr uint32_t kRailMarginCodes = 16;        // codes this close to a rail: saturated
 
-  explicit Acquisition(Spi& spi) : adc_(spi) {
+  explicit Acquisition(Spi& spi) : AcquisitionScalars(), adc_(spi) {
+    entropy_ = 0x9E3779B9UL;
     update_scale();
-    counters_ = AcquisitionCounters();
     for (uint8_t i = 0; i < kChannels; ++i) {
       readings_[i].faults = wire::kFaultAdc;
       readings_[i].code = 0;
-      readings_[i].r_ohm = 0.0f;
+      readings_[i].r_q16 = 0;
       cal_[i].offset = ad7794::kOffsetPowerOn;
       cal_[i].full_scale = 0;
     }
@@ -189,7 +220,7 @@ class Acquisition {
         for (uint8_t i = 0; i < kChannels; ++i) {
           readings_[i].faults = 0;
           readings_[i].code = 0;
-          readings_[i].r_ohm = 0.0f;
+          readings_[i].r_q16 = 0;
         }
         plan_burnout_checks();
         if (channel_ >= kChannels) {
@@ -246,10 +277,7 @@ class Acquisition {
   }
 
  private:
-  enum State : uint8_t {
-    kStart, kResetWait, kMissing, kCalStart, kCalZeroWait, kCalFullWait, kIdle, kConvStart,
-    kConvWait, kBurnWait,
-  };
+
 
   uint8_t data_width() const { return chip_ == AdcChip::kAd7795 ? 2 : 3; }
 
@@ -343,7 +371,7 @@ class Acquisition {
     for (uint8_t i = 0; i < kChannels; ++i) {
       readings_[i].faults = fault;
       readings_[i].code = 0;
-      readings_[i].r_ohm = 0.0f;
+      readings_[i].r_q16 = 0;
     }
     const bool in_sweep = state_ == kConvStart || state_ == kConvWait || state_ == kBurnWait;
     if (in_sweep || sweep_requested_) {
@@ -369,12 +397,11 @@ class Acquisition {
     // The AD7794 applied its own offset/full-scale calibration, the coding is unipolar: this is
     // code_to_resistance() (common/ratiometric.hpp) with an identity software calibration, whose
     // checks reduce to the configuration and the rails (a code between the rails cannot be negative
-    // or beyond the gain's range). Written out, with the ohms per code prepared in configure()
-    // (R_ref times a power of two: exact), a reading costs one conversion and one multiplication
-    // -- the same single rounding of R_ref * code / (2^24 G) -- instead of ~10 float operations.
-    // Same values and statuses (tests/unit/firmware/acquisition_test.cpp).
+    // or beyond the gain's range), in fixed point: R_ref x 2^16 prepared in configure(), a reading
+    // is one 32x32 product (code_to_ohm_q16), rounded once, no float.
+    // Same statuses, the resistance within 2^-17 ohm (tests/unit/firmware/acquisition_test.cpp).
     const uint32_t margin = kRailMarginCodes;
-    r.r_ohm = 0.0f;
+    r.r_q16 = 0;
     RatioStatus rs = RatioStatus::kOk;
     if (!ref_ok_) {
       rs = RatioStatus::kBadConfig;
@@ -385,12 +412,12 @@ class Acquisition {
     } else if (code >= kAdcFullScaleCode - margin) {
       rs = RatioStatus::kRailHigh;
     } else {
-      r.r_ohm = static_cast<float>(code) * ohm_per_code_;
+      r.r_q16 = code_to_ohm_q16(code, static_cast<uint8_t>(setup_.gain_code & 7U), r_ref_q16_);
     }
     if (faults == 0) {
       switch (rs) {
         case RatioStatus::kOk:
-          if (r.r_ohm < kShortBelowOhm) faults |= wire::kFaultShort;
+          if (r.r_q16 < kShortBelowQ16) faults |= wire::kFaultShort;
           break;
         case RatioStatus::kRailLow: faults |= wire::kFaultShort; break;
         case RatioStatus::kRailHigh: faults |= wire::kFaultOpen; break;
@@ -427,35 +454,18 @@ class Acquisition {
     state_ = kIdle;
   }
 
-  // R_ref / (2^24 G): ohms per code (exact: R_ref scaled by a power of two).
+  // R_ref in ohm x 2^16 for code_to_ohm_q16.
   void update_scale() {
-    ohm_per_code_ = setup_.r_ref_ohm * raw_ratio<float>(1, ad7794::gain_of_code(setup_.gain_code), false);
-    ref_ok_ = setup_.r_ref_ohm > 0.0f;  // checked once here, not per reading
+    r_ref_q16_ = ohm_q16_from_milliohm(setup_.r_ref_milliohm);
+    ref_ok_ = r_ref_q16_ != 0;  // checked once here, not per reading
   }
 
   Ad7794<Spi> adc_;
   AcquisitionSetup setup_;
-  float ohm_per_code_;
+  uint32_t r_ref_q16_;
   bool ref_ok_;
   AdcCalibration cal_[kChannels];
   ChannelReading readings_[kChannels];
-  AcquisitionCounters counters_;
-  uint32_t mark_ = 0;
-  uint32_t entropy_ = 0x9E3779B9UL;
-  uint16_t timeout_ms_ = 0;
-  uint16_t last_config_ = 0;
-  uint16_t sweeps_since_cal_ = 0;
-  State state_ = kStart;
-  uint8_t channel_ = 0;
-  uint8_t burnout_due_ = 0;    // bit j: channel j gets its open-wire check this sweep
-  uint8_t burnout_next_ = 0;   // where the next sweep's checks start
-  uint8_t open_latched_ = 0;   // bit j: channel j's last open-wire check found it open
-  uint8_t unchecked_ = 0;      // bit j: channel j has had no open-wire check since configure()
-  bool burnout_on_ = false;    // the chip's configuration has the burnout currents on
-  AdcChip chip_ = AdcChip::kNone;
-  bool calibrated_ = false;
-  bool sweep_requested_ = false;
-  bool sweep_ready_ = false;
 };
 
 }  // namespace btsm

@@ -152,17 +152,15 @@ class App {
     AcquisitionSetup s;
     s.fs = config_.adc_fs;
     s.enabled_mask = config_.enabled_mask();
-    s.r_ref_ohm = static_cast<float>(config_.r_ref_milliohm) * 0.001f;
+    s.r_ref_milliohm = config_.r_ref_milliohm;
     acq_.configure(s);
-    KalmanParams<float> kp;
-    kp.process_noise_k2_per_s = static_cast<float>(config_.kalman_q) * 1e-6f;
-    kp.measurement_noise_k = sqrtf(static_cast<float>(config_.kalman_r)) * 1e-3f;
-    kp.dt_s = static_cast<float>(config_.sample_period_ms) * 0.001f;
-    // Once settled, an update is a subtraction, a comparison and a multiply-add (no division);
-    // the transient after a reset or a rejection runs the full update (common/kalman.hpp).
-    kp.steady_state_gain = true;
+    // The fixed-point filter takes the configuration's integers as they are (common/kalman.hpp):
+    // once settled an update is a subtraction, a comparison and one product.
+    KalmanFixedParams kp;
+    kp.q_mk2_per_s = config_.kalman_q;
+    kp.r_mk2 = config_.kalman_r;
+    kp.dt_ms = config_.sample_period_ms;
     kalman_setup_.configure(kp);
-    kalman_settle_.configure(kalman_setup_);
     for (uint8_t j = 0; j < kChannels; ++j) kalman_[j].reset();
     board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
     diagnosis_.configure(config_.alarm_latch != 0);
@@ -191,10 +189,10 @@ class App {
 
   // ---- measurement pipeline -----------------------------------------------------------------
   void process_sweep(uint32_t now) {
-    // The channels' filters share their parameters, and while they settle normally also their
-    // variance: one gain computation (a float division) serves all five (exact, see
-    // common/kalman.hpp). Settled filters use the precomputed steady-state gain.
-    KalmanGainMemo<float> memo;
+    // The channels' filters share their parameters, and after a rejection often also their
+    // variance: one gain computation serves them all (exact, see common/kalman.hpp). Settled
+    // filters use the precomputed steady-state gain, settling ones the precomputed first gains.
+    KalmanFixedGainMemo memo;
     for (uint8_t j = 0; j < kChannels; ++j) process_channel(j, memo);
     update_speed();
     // The model advances on the sweeps' schedule (drift-free start times), not on the moment the
@@ -208,7 +206,7 @@ class App {
 
   // One channel out of line: inlined into the loop (and with it into poll() and main()) the body
   // ran out of registers and spent ~200 cycles per channel moving spilled pointers.
-  BTSM_NOINLINE void process_channel(uint8_t j, KalmanGainMemo<float>& memo) {
+  BTSM_NOINLINE void process_channel(uint8_t j, KalmanFixedGainMemo& memo) {
     uint8_t faults = 0;
     int32_t t_mK = wire::kMissing;
     if (config_.roles[j] == static_cast<uint8_t>(wire::ChannelRole::Disabled)) {
@@ -220,13 +218,13 @@ class App {
     const ChannelReading& r = acq_.reading(j);
     faults = r.faults;
     if (faults == 0) {
-      // IEC 60751 Pt1000: the table inverse (no division, no square root) over -118...275 degC,
-      // the exact inverse beyond (common/rtd.hpp); its constant coefficients fold with LTO.
-      const RtdResult<float> t = pt1000_temperature_fast(r.r_ohm);
+      // IEC 60751 Pt1000, fixed point: the table inverse over -118...850 degC (common/rtd.hpp),
+      // straight into the filter's unit (1/256 mK).
+      const Pt1000FixedResult t = pt1000_temperature_q(r.r_q16);
       if (!t.ok()) {
         faults = t.status == RtdStatus::kBelowRange ? wire::kFaultShort : wire::kFaultOpen;
       } else {
-        const KalmanOutcome o = kalman_[j].update(kalman_setup_, t.value, &memo, &kalman_settle_);
+        const KalmanOutcome o = kalman_[j].update(kalman_setup_, t.t, &memo);
         if (o == KalmanOutcome::kRejected) {
           faults |= wire::kFaultKalmanReject;
           if (kalman_rejects_ != 0xFFFF) ++kalman_rejects_;
@@ -234,8 +232,7 @@ class App {
         // Nearest mK. An unusable filter (parameters out of its domain; the configuration
         // ranges exclude that) reports the unfiltered temperature rather than its empty estimate.
         if (o == KalmanOutcome::kInvalid) {
-          const int32_t twice = static_cast<int32_t>(t.value * 2000.0f);
-          t_mK = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);
+          t_mK = t.t >= 0 ? (t.t + 128) >> 8 : -((128 - t.t) >> 8);
         } else {
           t_mK = kalman_[j].estimate_mk();
         }
@@ -551,9 +548,8 @@ class App {
   FirmwareConfig config_;
   ModelRuntime model_;
   ReducedModelState model_state_;
-  KalmanSetup<float> kalman_setup_;
-  KalmanSettleGains<float> kalman_settle_;
-  KalmanChannel<float> kalman_[kChannels];
+  KalmanFixedSetup kalman_setup_;
+  KalmanFixedChannel kalman_[kChannels];
   DiagnosisStage diagnosis_;
   // Set in init() (an initialiser image would sit in SRAM on AVR).
   int32_t temp_mK_[kChannels];

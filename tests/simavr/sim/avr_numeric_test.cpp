@@ -3,12 +3,17 @@
 // flags) and are compared with the exact integer result on the host, operand by operand:
 // random operands over the whole range plus the edge cases (zero, +-1, the int32 limits, the
 // fraction's ends and the rounding tie). A wrong carry or register in the assembly shows here;
-// the host build never compiles it.
+// the host build never compiles it. Likewise the integer sample path (the Pt1000 table inverse,
+// the fixed-point kernels and the Kalman filter's setup and gains), whose C++ could compute
+// differently where int is 16 bits: bit for bit against the host build.
 #include "boards/sim/simavr/simavr_harness.hpp"
+#include "common/kalman.hpp"
 #include "common/reduced_model.hpp"
+#include "common/rtd.hpp"
 
 #include <gtest/gtest.h>
 
+#include <array>
 #include <cstdint>
 #include <filesystem>
 #include <memory>
@@ -84,6 +89,87 @@ class AvrNumeric : public ::testing::Test {
   std::unique_ptr<SimavrHarness> h;
   std::vector<uint8_t> rx;
 };
+
+TEST_F(AvrNumeric, Pt1000TableInverseIsTheHostsBitForBit) {
+  std::mt19937 rng(13);
+  std::vector<uint32_t> rs = {0, 1, detail_rtd::kPt1000FixedMinQ16 - 1, detail_rtd::kPt1000FixedMinQ16,
+                              detail_rtd::kPt1000FixedMaxQ16, detail_rtd::kPt1000FixedMaxQ16 + 1, 1000u << 16,
+                              (1024u << 16) - 1, 1024u << 16, 2048u << 16, 0xFFFFFFFFu};
+  for (int i = 0; i < 1500; ++i) rs.push_back(detail_rtd::kPt1000FixedMinQ16 + rng() % (260u << 20));
+  for (uint32_t r : rs) {
+    std::vector<uint8_t> cmd{'T'};
+    put32(cmd, r);
+    const auto got = exchange(cmd, 5);
+    ASSERT_EQ(got.size(), 5u);
+    const Pt1000FixedResult want = pt1000_temperature_q(r);
+    ASSERT_EQ(uint8_t(want.status), got[4]) << r;
+    ASSERT_EQ(uint32_t(want.t), get32(got.data())) << r;
+  }
+}
+
+TEST_F(AvrNumeric, FixedPointKernelsAreTheHostsBitForBit) {
+  std::mt19937 rng(17);
+  std::vector<std::pair<uint32_t, uint32_t>> cases = {{0, 0}, {0xFFFFFFFFu, 0xFFFFFFFFu}, {0x80000000u, 1},
+                                                      {0x7FFFFFFFu, 1}, {0x80000000u, 3}, {1, 0xFFFFFFFFu},
+                                                      {0x00FF00FFu, 0xFF00FF00u}, {0x12345678u, 0x9ABCDEF0u}};
+  for (int i = 0; i < 1500; ++i) {
+    uint32_t a = rng() >> (rng() % 32), b = rng() >> (rng() % 32);
+    if (i % 2 && a > b) std::swap(a, b);
+    cases.push_back({a, b});
+  }
+  for (const auto& [a, b] : cases) {
+    std::vector<uint8_t> cmd{'F'};
+    put32(cmd, a);
+    put32(cmd, b);
+    const auto got = exchange(cmd, 12);
+    ASSERT_EQ(got.size(), 12u);
+    ASSERT_EQ(get32(got.data()), a < b ? fx::frac_q32(a, b) : 0u) << a << " " << b;
+    ASSERT_EQ(get32(got.data() + 4), a && b ? fx::sqrt_mul(a, b) : 0u) << a << " " << b;
+    // The assembly against the exact rounded high word.
+    ASSERT_EQ(get32(got.data() + 8), uint32_t((uint64_t(a) * b + 0x80000000u) >> 32)) << std::hex << a << " * " << b;
+  }
+}
+
+// The filter's setup over the configuration range, and its gain computation for variances from
+// the settle sequence, after rejections and random ones: the same integers on the AVR.
+TEST_F(AvrNumeric, KalmanSetupAndGainsAreTheHostsBitForBit) {
+  std::mt19937 rng(19);
+  std::vector<std::array<uint32_t, 3>> cfgs = {{400, 2500, 5000}, {1, 1, 1000}, {100000000, 1, 600000},
+                                               {1, 100000000, 1000}, {100, 100, 5000}, {0, 2500, 5000}};
+  for (int i = 0; i < 40; ++i)
+    cfgs.push_back({uint32_t(1 + rng() % 100000000), uint32_t(1 + rng() % 100000000), uint32_t(1000 + rng() % 599001)});
+  for (const auto& c : cfgs) {
+    std::vector<uint8_t> cmd{'K'};
+    for (uint32_t v : c) put32(cmd, v);
+    const auto got = exchange(cmd, 21);
+    ASSERT_EQ(got.size(), 21u);
+    KalmanFixedParams kp;
+    kp.q_mk2_per_s = c[0];
+    kp.r_mk2 = c[1];
+    kp.dt_ms = c[2];
+    KalmanFixedSetup k;
+    ASSERT_EQ(k.configure(kp) ? 1 : 0, got[0]) << c[0] << " " << c[1] << " " << c[2];
+    if (!got[0]) continue;
+    ASSERT_EQ(get32(got.data() + 1), k.one());
+    ASSERT_EQ(get32(got.data() + 5), k.rho());
+    ASSERT_EQ(get32(got.data() + 9), k.steady_gain());
+    ASSERT_EQ(get32(got.data() + 13), k.steady_post());
+    ASSERT_EQ(get32(got.data() + 17), k.steady_gate());
+    std::vector<uint32_t> ps = {k.one(), k.steady_post() + k.rho(), k.steady_post() + 3 * k.rho(), 1, 0x7FFFFFFF};
+    for (int j = 0; j < 8; ++j) ps.push_back(1 + rng() % (2 * k.one()));
+    for (uint32_t pv : ps) {
+      std::vector<uint8_t> g{'G'};
+      put32(g, pv);
+      const auto gg = exchange(g, 12);
+      ASSERT_EQ(gg.size(), 12u);
+      KalmanFixedGainMemo m;
+      k.gain_for(pv, m);
+      ASSERT_EQ(get32(gg.data()), m.gain) << pv;
+      ASSERT_EQ(get32(gg.data() + 4), m.p_post) << pv;
+      ASSERT_EQ(get32(gg.data() + 8), m.gate) << pv;
+    }
+  }
+}
 
 TEST_F(AvrNumeric, WideMultiplyMatchesTheExactProduct) {
   std::mt19937 rng(7);

@@ -1,6 +1,6 @@
-// Instantiates the numeric templates exactly as the firmware does (float, fixed point, int sizes of
-// the AVR where int is 16 bits) and links a real ATmega328P image, so code that only a template
-// instantiation reveals (conversions, 16-bit int promotions, missing libm/libgcc symbols) is caught
+// Instantiates the numeric templates and kernels as the firmware does (fixed point, the float
+// templates, int sizes of the AVR where int is 16 bits) and links a real ATmega328P image, so code
+// that only a template instantiation reveals (conversions, 16-bit int promotions, missing libm/libgcc symbols) is caught
 // and the flash/RAM cost of the numeric core is printed by avr-size.
 #include "diagnosis.hpp"
 #include "fixed_point.hpp"
@@ -16,6 +16,8 @@ uint8_t g_blob[btsm::kReducedModelBlobSize];
 btsm::ReducedModel model;
 btsm::ReducedModelState state;
 btsm::ScalarKalman<float> kalman[btsm::kModelChannels];
+btsm::KalmanFixedSetup kalman_fixed_setup;
+btsm::KalmanFixedChannel kalman_fixed[btsm::kModelChannels];
 btsm::Diagnosis<btsm::kModelChannels> diag;
 btsm::RiseRate<13> rise[btsm::kModelChannels];
 
@@ -36,6 +38,15 @@ int main() {
     in[j].predicted_mK = predicted[j];
     in[j].rise_mK_per_min = rise[j].push(t_mK);
     in[j].fault = !r.ok() || !t.ok();
+  }
+  // The firmware's own path: fixed-point resistance, table inverse, fixed-point filter.
+  kalman_fixed_setup.configure(btsm::KalmanFixedParams());
+  btsm::KalmanFixedGainMemo memo;
+  for (uint8_t j = 0; j < btsm::kModelChannels; ++j) {
+    const uint32_t r_q16 = btsm::code_to_ohm_q16(g_code + j, 2, btsm::ohm_q16_from_milliohm(6800000UL));
+    const btsm::Pt1000FixedResult t = btsm::pt1000_temperature_q(r_q16);
+    kalman_fixed[j].update(kalman_fixed_setup, t.t, &memo);
+    g_sink[2 + (j & 1)] += kalman_fixed[j].estimate_mk();
   }
   g_sink[0] = static_cast<int32_t>(diag.update(in)) + static_cast<int32_t>(check.status);
   g_sink[1] = btsm::fx::fx_mul<btsm::fx::Q16_16>(btsm::fx::Q1_30::from_raw(g_sink[2]),

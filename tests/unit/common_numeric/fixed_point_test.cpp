@@ -5,7 +5,9 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <cstdint>
 #include <random>
 
@@ -253,6 +255,86 @@ TEST(FixedArithmetic, AddSubSaturate) {
   EXPECT_EQ(fx_add(Q16::min(), Q16::max(), &st).raw(), -1);
   EXPECT_EQ(st, FxStatus::kOk);
   EXPECT_TRUE(Q16::from_raw(-1) < Q16());
+}
+
+// ---- The 32-bit kernels of the MCU's sample path, against exact 128-bit / long double results ----
+
+TEST(FixedKernels, ProductHighWordRoundedToNearest) {
+  std::mt19937 rng(1);
+  for (int i = 0; i < 200000; ++i) {
+    const uint32_t u = i < 4 ? (i & 1 ? 0xFFFFFFFFu : 0u) : rng(), f = i < 4 ? (i & 2 ? 0xFFFFFFFFu : 1u) : rng();
+    const uint64_t p = static_cast<uint64_t>(u) * f;
+    ASSERT_EQ(mul_hi_round(u, f), static_cast<uint32_t>((static_cast<unsigned __int128>(p) + 0x80000000u) >> 32));
+  }
+  EXPECT_EQ(mul_hi_round(0x80000000u, 1), 1u);           // 0.5: ties up
+  EXPECT_EQ(mul_hi_round(0x80000000u, 2), 1u);           // 1.0
+  EXPECT_EQ(mul_hi_round(0x80000000u, 3), 2u);           // 1.5 -> 2
+  EXPECT_EQ(mul_hi_round(0x7FFFFFFFu, 1), 0u);           // just below 0.5
+  EXPECT_EQ(mul_hi_round(0xFFFFFFFFu, 0xFFFFFFFFu), 0xFFFFFFFEu);  // 2^32 - 2 + 2^-32
+}
+
+TEST(FixedKernels, FractionIsTheRoundedQuotient) {
+  std::mt19937 rng(2);
+  for (int i = 0; i < 200000; ++i) {
+    uint32_t b = rng() | 1u, a = rng();
+    if (i % 3 == 0) b >>= rng() % 31;
+    if (b == 0) b = 1;
+    a %= b;
+    const unsigned __int128 n = (static_cast<unsigned __int128>(a) << 32);
+    uint64_t exact = static_cast<uint64_t>((n + b / 2) / b);  // ties up: (2r >= b)
+    if ((n % b) * 2 == b) exact = static_cast<uint64_t>(n / b) + 1;
+    if (exact > 0xFFFFFFFFu) exact = 0xFFFFFFFFu;
+    ASSERT_EQ(frac_q32(a, b), exact) << a << " / " << b;
+  }
+  EXPECT_EQ(frac_q32(0, 7), 0u);
+  EXPECT_EQ(frac_q32(1, 2), 0x80000000u);
+  EXPECT_EQ(frac_q32(0xFFFFFFFEu, 0xFFFFFFFFu), 0xFFFFFFFFu);  // rounds to 1: saturated
+}
+
+TEST(FixedKernels, IntegerSquareRootsAndNormalisation) {
+  std::mt19937 rng(3);
+  for (int i = 0; i < 200000; ++i) {
+    const uint32_t v = i < 3 ? (i == 0 ? 0u : i == 1 ? 0xFFFFFFFFu : 0xFFFE0001u) : rng() >> (rng() % 32);
+    const uint32_t r = isqrt32(v);
+    ASSERT_LE(static_cast<uint64_t>(r) * r, v);
+    ASSERT_GT((static_cast<uint64_t>(r) + 1) * (r + 1), v);
+    if (v == 0) continue;
+    uint8_t k = 0, ke = 0;
+    const uint32_t n = normalize(v, &k);
+    ASSERT_EQ(n, v << k);
+    ASSERT_GE(n, 0x80000000u);
+    const uint32_t e = normalize_even(v, &ke);
+    ASSERT_EQ(ke % 2, 0);
+    ASSERT_EQ(e, v << ke);
+    ASSERT_GE(e, 0x40000000u);
+  }
+  double worst = 0;
+  for (int i = 0; i < 200000; ++i) {
+    const uint32_t a = (rng() >> (rng() % 31)) | 1u, b = (rng() >> (rng() % 31)) | 1u;
+    const double exact = std::sqrt(double(a) * double(b));
+    const uint32_t s = sqrt_mul(a, b);
+    if (exact >= 65536) worst = std::max(worst, std::fabs(s - exact) / exact);
+    ASSERT_LE(std::fabs(s - exact), exact * 6.2e-5 + 1.0) << a << " " << b;
+  }
+  std::printf("[fixed] sqrt_mul (16-bit roots of the normalised operands): worst %.2e relative (results >= 2^16)\n", worst);
+  EXPECT_LT(worst, 6.2e-5);
+}
+
+TEST(FixedKernels, ShiftRoundSaturate) {
+  EXPECT_EQ(shift_round_sat(5, 0), 5u);
+  EXPECT_EQ(shift_round_sat(5, 2), 20u);
+  EXPECT_EQ(shift_round_sat(0x40000000u, 1), 0x80000000u);
+  EXPECT_EQ(shift_round_sat(0x40000000u, 2), 0xFFFFFFFFu);  // saturated
+  EXPECT_EQ(shift_round_sat(1, 40), 0xFFFFFFFFu);
+  EXPECT_EQ(shift_round_sat(0, 40), 0u);
+  EXPECT_EQ(shift_round_sat(6, -2), 2u);   // 1.5 -> 2 (ties up)
+  EXPECT_EQ(shift_round_sat(5, -2), 1u);   // 1.25
+  EXPECT_EQ(shift_round_sat(7, -2), 2u);   // 1.75
+  EXPECT_EQ(shift_round_sat(0xFFFFFFFFu, -1), 0x80000000u);
+  EXPECT_EQ(shift_round_sat(0xFFFFFFFFu, -31), 2u);
+  EXPECT_EQ(shift_round_sat(0xFFFFFFFFu, -32), 1u);  // 0.99999... -> 1
+  EXPECT_EQ(shift_round_sat(0xFFFFFFFFu, -33), 0u);  // 0.49999... -> 0
+  EXPECT_EQ(shift_round_sat(0xFFFFFFFFu, -40), 0u);
 }
 
 }  // namespace

@@ -4,7 +4,10 @@
 
 #include <gtest/gtest.h>
 
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
+#include <random>
 
 #include "common/rtd.hpp"
 
@@ -72,6 +75,45 @@ TEST(Ratiometric, FloatPathMatchesDouble) {
     if (f.ok()) worst = std::max(worst, std::fabs(double(f.r_ohm) - d.r_ohm));
   }
   EXPECT_LT(worst, 2e-4);  // float ulp of R near 1700 ohm is 1.2e-4
+}
+
+// The MCU's fixed-point path: R_ref from milliohms to ohm x 2^16 rounded to nearest, and
+// R = R_ref code / (2^24 G) as one 32x32 product, exactly round(R_ref_q16 code / 2^(24 + log2 G))
+// for every gain, whole-range codes and R_ref over the configuration range.
+TEST(RatiometricFixed, ReferenceFromMilliohmIsRoundedToNearest) {
+  for (uint32_t mohm : {1000000u, 1000001u, 4999999u, 6800000u, 6800062u, 12345678u, 20000000u, 65535999u})
+    EXPECT_EQ(ohm_q16_from_milliohm(mohm), static_cast<uint32_t>(std::llround(mohm * 65536.0 / 1000.0))) << mohm;
+  std::mt19937 rng(5);
+  for (int i = 0; i < 100000; ++i) {
+    const uint32_t mohm = 1000000u + rng() % 19000001u;
+    ASSERT_EQ(ohm_q16_from_milliohm(mohm), static_cast<uint32_t>(std::llround(mohm * 65536.0 / 1000.0))) << mohm;
+  }
+}
+
+TEST(RatiometricFixed, ResistanceIsTheExactQuotientRoundedOnce) {
+  std::mt19937 rng(9);
+  for (uint8_t g = 0; g <= 7; ++g) {
+    for (int i = 0; i < 20000; ++i) {
+      const uint32_t code = i == 0 ? 0xFFFFFFu : i == 1 ? 1u : rng() & 0xFFFFFFu;
+      const uint32_t r_ref_q16 = ohm_q16_from_milliohm(1000000u + rng() % 19000001u);
+      const unsigned __int128 p = static_cast<unsigned __int128>(code) * r_ref_q16;
+      const int shift = 24 + g;
+      const uint64_t exact = static_cast<uint64_t>((p + (static_cast<unsigned __int128>(1) << (shift - 1))) >> shift);
+      ASSERT_EQ(code_to_ohm_q16(code, g, r_ref_q16), exact) << "gain 2^" << int(g) << " code " << code;
+    }
+  }
+  // Against the double path at the module's settings: half an LSB of 2^-16 ohm plus R_ref's rounding.
+  const auto cd = btsm_config();
+  const ChannelCalibration<double> cald;
+  const uint32_t rq = ohm_q16_from_milliohm(6800000u);
+  double worst = 0;
+  for (uint32_t code = 0x100000; code < 0xF00000; code += 997) {
+    const auto d = code_to_resistance(code, false, cd, cald);
+    ASSERT_TRUE(d.ok());
+    worst = std::max(worst, std::fabs(code_to_ohm_q16(code, 2, rq) / 65536.0 - d.r_ohm));
+  }
+  std::printf("[ratiometric] fixed point (ohm x 2^16) vs double: worst %.2e ohm\n", worst);
+  EXPECT_LT(worst, 1.0 / 65536);  // float path: 2e-4 ohm
 }
 
 TEST(Ratiometric, CalibrationCorrectsOffsetAndGain) {

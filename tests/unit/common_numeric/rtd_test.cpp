@@ -238,68 +238,73 @@ TEST(RtdFloat, FullRangeFloatInverseStaysWithinAMillikelvinScale) {
   EXPECT_LT(worst, 3e-4);
 }
 
-// The MCU's table inverse (pt1000_temperature_fast): every coefficient is the exact double
-// inverse interpolated at the segment's three Chebyshev nodes (recomputed here, so the literals in
-// common/rtd.hpp are provably derived from RtdInverse), in the ulp units of its binade.
-TEST(RtdFast, TableCoefficientsAreTheExactInverseAtChebyshevNodes) {
+// The MCU's table inverse (pt1000_temperature_q, fixed point): every coefficient is the exact
+// double inverse interpolated at the segment's three Chebyshev nodes (recomputed here, so the
+// integers in common/rtd.hpp are provably derived from RtdInverse), written in powers of the
+// position x in [0, 1) from the segment start, in 1/256 mK (d1, d2 scaled by 256).
+// The last segments reach past 850 degC: there the closed-form root (exact above 0 degC) continued.
+TEST(RtdFixed, TableCoefficientsAreTheExactInverseAtChebyshevNodes) {
   const auto kd = iec60751<double>(1000.0);
-  const detail_rtd::QuadSegment* table = detail_rtd::pt1000_segments();
-  for (int seg = 0; seg < detail_rtd::kPt1000Segments; ++seg) {
-    const int e = seg < 16 ? 9 : 10;  // binade [2^e, 2^(e+1))
-    const double width = std::ldexp(1.0, e) / 16, ulp = std::ldexp(1.0, e - 23);
-    const double mid = std::ldexp(1.0, e) + (seg % 16 + 0.5) * width, h = width / 2;
+  const auto t_of = [&kd](double r) {
+    if (r <= 3900.0) return rtd_temperature(kd, r).value;
+    const double a = 1000.0 * kd.a, b = 1000.0 * kd.b, d = r - 1000.0;
+    return 2 * d / (a + std::sqrt(a * a + 4 * b * d));
+  };
+  const detail_rtd::QuadSegmentFixed* table = detail_rtd::pt1000_fixed_segments();
+  for (int seg = 0; seg < detail_rtd::kPt1000FixedSegments; ++seg) {
+    const int b = seg / 16;  // binade [512 2^b, 1024 2^b) ohm
+    const double width = 32.0 * (1 << b), h = width / 2;
+    const double mid = 512.0 * (1 << b) + (seg % 16 + 0.5) * width;
     const double u = std::cos(M_PI / 6);
-    const double y0 = rtd_temperature(kd, mid - u * h).value, y1 = rtd_temperature(kd, mid).value,
-                 y2 = rtd_temperature(kd, mid + u * h).value;
-    const double c0 = y1, c1 = (y2 - y0) / (2 * u) / h * ulp, c2 = (y0 + y2 - 2 * y1) / (2 * u * u) / (h * h) * ulp * ulp;
-    EXPECT_NEAR(table[seg].a0, c0, std::fabs(c0) * 1.2e-7 + 1e-12) << "segment " << seg;
-    EXPECT_NEAR(table[seg].a1, c1, std::fabs(c1) * 1.2e-7) << "segment " << seg;
-    EXPECT_NEAR(table[seg].a2, c2, std::fabs(c2) * 1.2e-7) << "segment " << seg;
+    const double y0 = t_of(mid - u * h), y1 = t_of(mid), y2 = t_of(mid + u * h);
+    // t = c0 + c1 z + c2 z^2 for z in [-1, 1] around the centre; x = (z + 1) / 2 from the start.
+    const double c0 = y1, c1 = (y2 - y0) / (2 * u), c2 = (y0 + y2 - 2 * y1) / (2 * u * u);
+    const double d0 = c0 - c1 + c2, d1 = 2 * c1 - 4 * c2, d2 = 4 * c2;
+    EXPECT_NEAR(table[seg].d0, d0 * 256000.0, 0.5 + 1e-6) << "segment " << seg;
+    EXPECT_NEAR(table[seg].d1, d1 * 256000.0 * 256, 0.5 + 1e-3) << "segment " << seg;
+    EXPECT_NEAR(table[seg].d2, d2 * 256000.0 * 256, 0.5 + 1e-6) << "segment " << seg;
   }
 }
 
-// Every float resistance in steps of ~1/100 ohm over the whole table range [512, 2048) ohm (the
-// step walks across every segment boundary) against the double exact inverse of the same float R.
-TEST(RtdFast, ErrorOverTheTableRangeIsMeasuredAndBounded) {
+// Every resistance in steps of ~1/100 ohm (in ohm x 2^16, walking across every segment boundary)
+// over the whole table range against the double exact inverse of the same resistance.
+TEST(RtdFixed, ErrorOverTheTableRangeIsMeasuredAndBounded) {
   const auto kd = iec60751<double>(1000.0);
-  const auto kf = iec60751<float>(1000.0f);
-  double worst = 0, worst_btsm = 0, worst_exact_float = 0, at = 0;
-  for (double r = 512.0; r < 2048.0; r += 0.0097) {
-    const float r_f = static_cast<float>(r);
-    const RtdResult<float> fast = pt1000_temperature_fast(r_f);
-    ASSERT_TRUE(fast.ok()) << r;
-    const double t_ref = rtd_temperature(kd, static_cast<double>(r_f)).value;
-    const double err = std::fabs(static_cast<double>(fast.value) - t_ref);
-    if (err > worst) worst = err, at = t_ref;
-    if (t_ref >= -40.0 && t_ref <= 150.0) {
-      worst_btsm = std::max(worst_btsm, err);
-      worst_exact_float = std::max(worst_exact_float, std::fabs(double(rtd_temperature(kf, r_f).value) - t_ref));
+  double worst_low = 0, worst_high = 0, worst_btsm = 0, at = 0;
+  for (uint32_t r_q16 = detail_rtd::kPt1000FixedMinQ16; r_q16 <= detail_rtd::kPt1000FixedMaxQ16; r_q16 += 653) {
+    const Pt1000FixedResult fx = pt1000_temperature_q(r_q16);
+    ASSERT_TRUE(fx.ok()) << r_q16;
+    const double t_ref = rtd_temperature(kd, r_q16 / 65536.0).value;
+    const double err = std::fabs(fx.t / 256000.0 - t_ref);
+    if (r_q16 < (2048u << 16)) {
+      if (err > worst_low) worst_low = err, at = t_ref;
+    } else {
+      worst_high = std::max(worst_high, err);
     }
+    if (t_ref >= -40.0 && t_ref <= 150.0) worst_btsm = std::max(worst_btsm, err);
   }
-  std::printf("[rtd] table inverse (float) vs exact double, 512...2048 ohm: worst %.2e degC (at %.1f degC); "
-              "-40...150 degC: %.2e degC (RtdInverse<float> there: %.2e)\n",
-              worst, at, worst_btsm, worst_exact_float);
-  EXPECT_LT(worst, 3.5e-5);       // float ulp of t is 1.5e-5 degC above 128 degC
-  EXPECT_LT(worst_btsm, 2.5e-5);  // same scale as the exact float inverse (4e-5 bound above)
+  std::printf("[rtd] table inverse (fixed point, 1/256 mK) vs exact double: 512...2048 ohm worst %.2e degC (at "
+              "%.1f degC), 2048 ohm...850 degC %.2e degC; -40...150 degC: %.2e degC\n",
+              worst_low, at, worst_high, worst_btsm);
+  EXPECT_LT(worst_low, 1.3e-5);   // fit 9.2e-6 + the 3.9 uK unit
+  EXPECT_LT(worst_high, 2.5e-4);  // fit 2.3e-4 above 297 degC (128 ohm segments)
+  EXPECT_LT(worst_btsm, 1.2e-5);  // the float table it replaced: 2.3e-5
 }
 
-// Outside [512, 2048) ohm (and for NaN) the result is RtdInverse<float>'s, bit for bit, errors
-// included; the table's first and last resistances are in the table.
-TEST(RtdFast, OutsideTheTableItIsTheExactInverse) {
-  const auto kf = iec60751<float>(1000.0f);
-  for (float r : {10.0f, 18.0f, 185.2f, 400.0f, 511.99997f, 2048.0f, 2500.0f, 3900.0f, 3905.0f, 1e6f, -1.0f, 0.0f, NAN}) {
-    const RtdResult<float> a = pt1000_temperature_fast(r), b = rtd_temperature(kf, r);
-    EXPECT_EQ(a.status, b.status) << r;
-    if (b.ok()) {
-      EXPECT_EQ(std::memcmp(&a.value, &b.value, sizeof(float)), 0) << r;
-    } else {
-      EXPECT_TRUE(std::isnan(a.value)) << r;
-    }
+// Below 512 ohm (-118.3 degC) kBelowRange, above R(850.02 degC) kAboveRange; both ends inside.
+TEST(RtdFixed, OutsideTheTableIsARangeError) {
+  for (uint32_t r : {0u, 1u, 18u << 16, 185u << 16, 500u << 16, detail_rtd::kPt1000FixedMinQ16 - 1})
+    EXPECT_EQ(pt1000_temperature_q(r).status, RtdStatus::kBelowRange) << r;
+  for (uint32_t r : {detail_rtd::kPt1000FixedMaxQ16 + 1, 3905u << 16, 4096u << 16, 0xFFFFFFFFu})
+    EXPECT_EQ(pt1000_temperature_q(r).status, RtdStatus::kAboveRange) << r;
+  const auto kd = iec60751<double>(1000.0);
+  for (uint32_t r : {detail_rtd::kPt1000FixedMinQ16, 1000u << 16, 1024u << 16, 2048u << 16, detail_rtd::kPt1000FixedMaxQ16}) {
+    const Pt1000FixedResult t = pt1000_temperature_q(r);
+    ASSERT_TRUE(t.ok()) << r;
+    EXPECT_NEAR(t.t / 256000.0, rtd_temperature(kd, r / 65536.0).value, 2.5e-4) << r;
   }
-  EXPECT_TRUE(pt1000_temperature_fast(512.0f).ok());
-  EXPECT_NEAR(pt1000_temperature_fast(512.0f).value, rtd_temperature(kf, 512.0f).value, 3e-5);
-  EXPECT_NEAR(pt1000_temperature_fast(2047.9999f).value, rtd_temperature(kf, 2047.9999f).value, 3e-5);
-  EXPECT_NEAR(pt1000_temperature_fast(1000.0f).value, 0.0f, 1e-5);
+  EXPECT_NEAR(pt1000_temperature_q(1000u << 16).t, 0, 4);  // 0 degC within a unit or so
+  EXPECT_NEAR(pt1000_temperature_q(detail_rtd::kPt1000FixedMaxQ16).t / 256000.0, 850.02, 1e-3);
 }
 
 }  // namespace

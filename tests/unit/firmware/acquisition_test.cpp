@@ -2,6 +2,10 @@
 // native board.
 #include <gtest/gtest.h>
 
+#include <algorithm>
+#include <cmath>
+#include <cstdio>
+
 #include "firmware/acquisition.hpp"
 #include "test_support.hpp"
 
@@ -44,7 +48,7 @@ TEST_F(AcqFixture, CalibratesEveryChannelAndMeasuresTheResistances) {
   for (uint8_t j = 0; j < 5; ++j) {
     const ChannelReading& r = acq.reading(j);
     EXPECT_EQ(r.faults, 0) << "channel " << int(j);
-    EXPECT_NEAR(r.r_ohm, board.front_end().probe_ohm[j], 0.01) << "channel " << int(j);
+    EXPECT_NEAR(r.r_q16 / 65536.0, board.front_end().probe_ohm[j], 0.01) << "channel " << int(j);
   }
   // AIN4 and AIN5 share one pair on the chip but keep their own coefficients in RAM.
   EXPECT_NE(acq.calibration(3).offset, acq.calibration(4).offset);
@@ -52,25 +56,33 @@ TEST_F(AcqFixture, CalibratesEveryChannelAndMeasuresTheResistances) {
   EXPECT_EQ(acq.counters().inits, 1u);
 }
 
-// evaluate() writes code_to_resistance() (identity software calibration, unipolar) out with a
-// prepared ohms-per-code scale: same value to the last bit, over the whole probe range.
-TEST_F(AcqFixture, ResistanceIsBitIdenticalToCodeToResistance) {
-  RatiometricConfig<float> cfg;
-  cfg.r_ref_ohm = AcquisitionSetup().r_ref_ohm;
+// evaluate() is code_to_resistance() (identity software calibration, unipolar) in fixed point:
+// the resistance is code_to_ohm_q16 bit for bit, and that is the exact R_ref code / (2^24 G) to
+// within half an LSB (2^-17 ohm) plus the rounding of R_ref to 2^-16 ohm scaled by the ratio, over
+// the whole probe range; the statuses are the same.
+TEST_F(AcqFixture, ResistanceIsCodeToResistanceInFixedPoint) {
+  RatiometricConfig<double> cfg;
+  cfg.r_ref_ohm = AcquisitionSetup().r_ref_milliohm * 1e-3;
   cfg.gain = ad7794::gain_of_code(AcquisitionSetup().gain_code);
   cfg.bipolar = false;
   cfg.rail_margin_codes = 16;
+  const uint32_t r_ref_q16 = ohm_q16_from_milliohm(AcquisitionSetup().r_ref_milliohm);
+  double worst = 0;
   for (double t = -60.0; t <= 165.0; t += 22.7) {  // up to ~1.66 kOhm: gain 4 reaches 1.7 kOhm
     for (int j = 0; j < 5; ++j) board.front_end().probe_ohm[j] = test::pt1000_ohm(t + j);
     ASSERT_TRUE(sweep());
     for (uint8_t j = 0; j < 5; ++j) {
       const ChannelReading& r = acq.reading(j);
       ASSERT_EQ(r.faults, 0) << t;
-      const RatioResult<float> ref = code_to_resistance<float>(r.code, false, cfg, ChannelCalibration<float>());
+      EXPECT_EQ(r.r_q16, code_to_ohm_q16(r.code, AcquisitionSetup().gain_code, r_ref_q16));
+      const RatioResult<double> ref = code_to_resistance<double>(r.code, false, cfg, ChannelCalibration<double>());
       ASSERT_TRUE(ref.ok());
-      EXPECT_EQ(r.r_ohm, ref.r_ohm) << "t " << t << " channel " << int(j) << " code " << r.code;
+      const double err = std::fabs(r.r_q16 / 65536.0 - ref.r_ohm);
+      worst = std::max(worst, err);
+      EXPECT_LE(err, 0.5 / 65536 + 0.5 / 65536 * ref.ratio + 1e-12) << "t " << t << " channel " << int(j);
     }
   }
+  std::printf("[acquisition] fixed-point resistance vs code_to_resistance (double): worst %.2e ohm\n", worst);
 }
 
 TEST_F(AcqFixture, SharedCalibrationPairIsRestoredOnChannelSwitch) {
@@ -79,8 +91,8 @@ TEST_F(AcqFixture, SharedCalibrationPairIsRestoredOnChannelSwitch) {
   // its own coefficients again, so both stay accurate sweep after sweep.
   for (int k = 0; k < 3; ++k) {
     ASSERT_TRUE(sweep());
-    EXPECT_NEAR(acq.reading(3).r_ohm, board.front_end().probe_ohm[3], 0.01);
-    EXPECT_NEAR(acq.reading(4).r_ohm, board.front_end().probe_ohm[4], 0.01);
+    EXPECT_NEAR(acq.reading(3).r_q16 / 65536.0, board.front_end().probe_ohm[3], 0.01);
+    EXPECT_NEAR(acq.reading(4).r_q16 / 65536.0, board.front_end().probe_ohm[4], 0.01);
   }
   // Control: converting AIN4 with AIN5's coefficients would be visibly wrong (offset errors
   // -5 uV vs +1.5 uV in the model = 0.03 ohm).
@@ -144,7 +156,7 @@ TEST_F(AcqFixture, RotatingOpenWireChecksFindEveryChannelWithinThreeSweeps) {
         if (acq.reading(broken).faults == 0) cleared_after = k;
       }
       ASSERT_NE(cleared_after, 0) << "channel " << int(broken) << " phase " << phase;
-      EXPECT_NEAR(acq.reading(broken).r_ohm, board.front_end().probe_ohm[broken], 0.01);
+      EXPECT_NEAR(acq.reading(broken).r_q16 / 65536.0, board.front_end().probe_ohm[broken], 0.01);
     }
   }
 }
@@ -233,7 +245,7 @@ TEST_F(AcqFixture, SilentResetIsDetectedByReadBackCountedAndRepaired) {
   EXPECT_EQ(acq.counters().inits, 2u);
   for (uint8_t j = 0; j < 5; ++j) {
     EXPECT_EQ(acq.reading(j).faults, 0);
-    EXPECT_NEAR(acq.reading(j).r_ohm, board.front_end().probe_ohm[j], 0.01);
+    EXPECT_NEAR(acq.reading(j).r_q16 / 65536.0, board.front_end().probe_ohm[j], 0.01);
   }
 }
 
@@ -246,7 +258,7 @@ TEST_F(AcqFixture, DisabledChannelsAreNotConverted) {
   ASSERT_TRUE(sweep());
   // 3 channels x measurement x 2 sweeps, burnout checks: all 3 in the first sweep, then 2.
   EXPECT_EQ(board.adc().counters().conversions - before, 11u);
-  EXPECT_NEAR(acq.reading(3).r_ohm, board.front_end().probe_ohm[3], 0.01);
+  EXPECT_NEAR(acq.reading(3).r_q16 / 65536.0, board.front_end().probe_ohm[3], 0.01);
 }
 
 }  // namespace

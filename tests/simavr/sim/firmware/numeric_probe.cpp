@@ -5,11 +5,21 @@
 // Commands over the UART (115200 8N1, little-endian operands), one reply per command:
 //   'M' d:u32 f:u16          -> 'M' high:u32 low:u16   detail_rm::mul_u32_u16(d, f)
 //   'L' p0:i32 p1:i32 f:u16  -> 'L' r:i32              detail_rm::lerp_q(p0, p1, f)
+//   'T' r:u32                -> 'T' t:i32 status:u8    pt1000_temperature_q(r) (ohm x 2^16 -> 1/256 mK)
+//   'F' a:u32 b:u32          -> 'F' q:u32 s:u32 h:u32  fx::frac_q32(a, b), fx::sqrt_mul(a, b),
+//                                                      fx::mul_hi_round(a, b) (AVR assembly)
+//   'K' q:u32 r:u32 dt:u32   -> 'K' ok:u8 one:u32 rho:u32 gain:u32 post:u32 gate:u32
+//                                                      KalmanFixedSetup::configure (the firmware's
+//                                                      filter setup from its configuration)
+//   'G' p:u32                -> 'G' gain:u32 post:u32 gate:u32   gain_for(p) of the last 'K' setup
 // At boot it sends 'B'. Unknown command bytes are answered with '?'.
 #include <avr/io.h>
 #include <stdint.h>
 
+#include "common/fixed_point.hpp"
+#include "common/kalman.hpp"
 #include "common/reduced_model.hpp"
+#include "common/rtd.hpp"
 
 namespace {
 
@@ -40,6 +50,8 @@ void put_u32(uint32_t v) {
   for (uint8_t i = 0; i < 4; ++i) put_byte(static_cast<uint8_t>(v >> (8 * i)));
 }
 
+btsm::KalmanFixedSetup setup;
+
 }  // namespace
 
 int main() {
@@ -68,6 +80,38 @@ int main() {
       const uint16_t f = get_u16();
       put_byte('L');
       put_u32(static_cast<uint32_t>(btsm::detail_rm::lerp_q(p0, p1, f)));
+    } else if (cmd == 'T') {
+      const btsm::Pt1000FixedResult t = btsm::pt1000_temperature_q(get_u32());
+      put_byte('T');
+      put_u32(static_cast<uint32_t>(t.t));
+      put_byte(static_cast<uint8_t>(t.status));
+    } else if (cmd == 'F') {
+      const uint32_t a = get_u32();
+      const uint32_t b = get_u32();
+      put_byte('F');
+      put_u32(a < b ? btsm::fx::frac_q32(a, b) : 0);
+      put_u32(a != 0 && b != 0 ? btsm::fx::sqrt_mul(a, b) : 0);
+      put_u32(btsm::fx::mul_hi_round(a, b));
+    } else if (cmd == 'K') {
+      btsm::KalmanFixedParams kp;
+      kp.q_mk2_per_s = get_u32();
+      kp.r_mk2 = get_u32();
+      kp.dt_ms = get_u32();
+      const bool ok = setup.configure(kp);
+      put_byte('K');
+      put_byte(ok ? 1 : 0);
+      put_u32(setup.one());
+      put_u32(setup.rho());
+      put_u32(setup.steady_gain());
+      put_u32(setup.steady_post());
+      put_u32(setup.steady_gate());
+    } else if (cmd == 'G') {
+      btsm::KalmanFixedGainMemo m;
+      setup.gain_for(get_u32(), m);
+      put_byte('G');
+      put_u32(m.gain);
+      put_u32(m.p_post);
+      put_u32(m.gate);
     } else {
       put_byte('?');
     }
