@@ -20,8 +20,11 @@ size_t InProcessLink::read(std::span<uint8_t> out, link::Millis timeout) {
     const std::vector<uint8_t> got = module_.host_receive();
     pending_.insert(pending_.end(), got.begin(), got.end());
     if (!pending_.empty() || module_.sim_time_s() >= end_s - 1e-9) break;
+    // Whole steps only: the host's timeouts are wall-clock deadlines, and a partial step would put
+    // the simulation's I/O and plant-update boundaries where the host's clock happened to be --
+    // a different measurement history on a busier machine.
     const double before = module_.sim_time_s();
-    module_.run_for(std::min(step_s_, end_s - before));
+    module_.run_for(step_s_);
     if (module_.sim_time_s() <= before) break;  // the module's run is over: nothing more will come
   }
   const size_t n = std::min(out.size(), pending_.size());

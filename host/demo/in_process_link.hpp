@@ -1,9 +1,11 @@
 #pragma once
 // A link::Transport straight into a SimModule driven synchronously (no pty, no thread): reading
-// advances the simulation until the module has sent something or the timeout, counted in
-// SIMULATED time, has passed. The whole host toolchain (Session, record, flash_model) then runs in
-// one thread against the simulated module, deterministically -- and the process may fork() to
-// continue one simulated history in several ways (tests/bench/detection).
+// advances the simulation in whole steps until the module has sent something or the timeout,
+// counted in SIMULATED time, has passed. The whole host toolchain (Session, record, flash_model)
+// then runs in one thread against the simulated module, deterministically whatever the machine's
+// load (as long as no wall-clock reply deadline of the session expires: the module answers within
+// milliseconds of simulated time) -- and the process may fork() to continue one simulated history
+// in several ways (tests/bench/detection).
 #include "host/link/transport.hpp"
 #include "host/sim/runner/sim_module.hpp"
 
@@ -19,7 +21,8 @@ class InProcessLink : public link::Transport {
 
   std::string describe() const override { return "in-process simulated module"; }
   void write(std::span<const uint8_t> bytes) override;
-  // Waits up to `timeout` of simulated time; 0 only when nothing arrived in that time.
+  // Waits up to `timeout` (rounded up to whole steps) of simulated time; 0 only when nothing
+  // arrived in that time.
   size_t read(std::span<uint8_t> out, link::Millis timeout) override;
   void reopen() override { pending_.clear(); }
 
