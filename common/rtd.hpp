@@ -238,13 +238,13 @@ inline RtdResult<Real> rtd_temperature(const RtdCoefficients<Real>& k,
 // common/ratiometric.hpp code_to_ohm_q16) to degC in 1/256 mK (the unit of the MCU's Kalman filter,
 // kKalmanFixPerK per kelvin), as a piecewise quadratic over R in [512, 4096) ohm, i.e.
 // -118.3 ... +850 degC: every temperature the IEC range holds above -118 degC. No float, no division,
-// no square root: two 32x32 products (fx::mul_hi_round) and a 12-byte table read.
+// no square root: two 32x32 products (fx::mul_hi_round) and a 10-byte table read.
 // Segments: 16 per binade ([512, 1024), [1024, 2048), [2048, 4096) ohm: 32, 64 and 128 ohm wide),
 // selected by the bit length of R and its next four bits. With x = (R - start) / width in [0, 1)
 // as the 32-bit fraction u (exact: the bits of R below the segment's),
 //   t = d0 + x (d1 + x d2)   evaluated as   t = d0 + (mulhi(u, D1 + mulhi(u, D2)) + 128) / 256
 // with D1 = 256 d1, D2 = 256 d2 (mulhi(a, b) = round(a b / 2^32)); d1, d2 > 0 (t(R) rises and is
-// convex), so everything is unsigned. The quadratic interpolates the exact inverse (double) at the
+// convex), so everything is unsigned. D2 is stored in 16 bits with a binade's scale (10-byte entries). The quadratic interpolates the exact inverse (double) at the
 // three Chebyshev nodes of each segment (near-minimax): fit error <= 9.2e-6 degC below 2048 ohm
 // (297 degC), 2.3e-4 degC above; with the integer evaluation 1.2e-5 degC below 2048 ohm and
 // 1.1e-5 degC over -40...150 degC (the float table it replaced: 2.3e-5 degC there).
@@ -261,7 +261,8 @@ namespace detail_rtd {
 struct QuadSegmentFixed {
   int32_t d0;   // t at the segment start, 1/256 mK
   uint32_t d1;  // 256 x slope x width, 1/256 mK
-  uint32_t d2;  // 256 x curvature x width^2 / 2, 1/256 mK
+  uint16_t d2;  // 256 x curvature x width^2 / 2, 1/256 mK, in units of 2^(5 + 2 binade): 10-byte
+                // entries (the rounding adds at most 2^-4, 2^-2 and 1 of a unit to t)
 };
 const uint8_t kPt1000FixedSegments = 48;
 const uint32_t kPt1000FixedMinQ16 = 512UL << 16;      // 512 ohm: -118.31 degC
@@ -273,54 +274,54 @@ inline const QuadSegmentFixed* pt1000_fixed_segments() {
       PROGMEM
 #endif
       = {
-      {-31288570L, 511663278UL, 1056520UL},  // R from 512 ohm
-      {-29285762L, 513776168UL, 1014930UL},  // R from 544 ohm
-      {-27274862L, 515805849UL, 974561UL},  // R from 576 ohm
-      {-25256192L, 517754764UL, 935620UL},  // R from 608 ohm
-      {-23230061L, 519625769UL, 898312UL},  // R from 640 ohm
-      {-21196766L, 521422132UL, 862835UL},  // R from 672 ohm
-      {-19156593L, 523147516UL, 829381UL},  // R from 704 ohm
-      {-17109811L, 524805968UL, 798136UL},  // R from 736 ohm
-      {-15056672L, 526401904UL, 769276UL},  // R from 768 ohm
-      {-12997412L, 527940099UL, 742975UL},  // R from 800 ohm
-      {-10932246L, 529425669UL, 719395UL},  // R from 832 ohm
-      {-8861368L, 530864058UL, 698694UL},  // R from 864 ohm
-      {-6784953L, 532261025UL, 681024UL},  // R from 896 ohm
-      {-4703149L, 533622634UL, 666532UL},  // R from 928 ohm
-      {-2616083L, 534955239UL, 655359UL},  // R from 960 ohm
-      {-523854L, 536264036UL, 650429UL},  // R from 992 ohm
-      {1573470L, 1075124295UL, 2630093UL},  // R from 1024 ohm
-      {5783451L, 1080384351UL, 2669078UL},  // R from 1088 ohm
-      {10014132L, 1085722373UL, 2709036UL},  // R from 1152 ohm
-      {14265820L, 1091140308UL, 2750002UL},  // R from 1216 ohm
-      {18538833L, 1096640167UL, 2792010UL},  // R from 1280 ohm
-      {22833493L, 1102224038UL, 2835099UL},  // R from 1344 ohm
-      {27150134L, 1107894081UL, 2879307UL},  // R from 1408 ohm
-      {31489096L, 1113652535UL, 2924677UL},  // R from 1472 ohm
-      {35850730L, 1119501723UL, 2971250UL},  // R from 1536 ohm
-      {40235394L, 1125444052UL, 3019074UL},  // R from 1600 ohm
-      {44643457L, 1131482020UL, 3068193UL},  // R from 1664 ohm
-      {49075297L, 1137618221UL, 3118660UL},  // R from 1728 ohm
-      {53531305L, 1143855347UL, 3170525UL},  // R from 1792 ohm
-      {58011879L, 1150196196UL, 3223844UL},  // R from 1856 ohm
-      {62517431L, 1156643675UL, 3278674UL},  // R from 1920 ohm
-      {67048382L, 1163200806UL, 3335076UL},  // R from 1984 ohm
-      {71605184L, 2339674565UL, 13691398UL},  // R from 2048 ohm
-      {80798060L, 2367053438UL, 14183623UL},  // R from 2176 ohm
-      {90099810L, 2395416418UL, 14706065UL},  // R from 2304 ohm
-      {99514396L, 2424823902UL, 15261387UL},  // R from 2432 ohm
-      {109046028L, 2455341604UL, 15852560UL},  // R from 2560 ohm
-      {118699181L, 2487041178UL, 16482912UL},  // R from 2688 ohm
-      {128478627L, 2520000920UL, 17156177UL},  // R from 2816 ohm
-      {138389455L, 2554306586UL, 17876557UL},  // R from 2944 ohm
-      {148437109L, 2590052330UL, 18648804UL},  // R from 3072 ohm
-      {158627415L, 2627341791UL, 19478298UL},  // R from 3200 ohm
-      {168966629L, 2666289356UL, 20371165UL},  // R from 3328 ohm
-      {179461475L, 2707021642UL, 21334394UL},  // R from 3456 ohm
-      {190119200L, 2749679225UL, 22376002UL},  // R from 3584 ohm
-      {200947633L, 2794418682UL, 23505217UL},  // R from 3712 ohm
-      {211955248L, 2841415015UL, 24732716UL},  // R from 3840 ohm
-      {223151247L, 2890864534UL, 26070905UL},  // R from 3968 ohm
+      {-31288570L, 511663278UL, 33016U},  // R from 512 ohm
+      {-29285762L, 513776168UL, 31717U},  // R from 544 ohm
+      {-27274862L, 515805849UL, 30455U},  // R from 576 ohm
+      {-25256192L, 517754764UL, 29238U},  // R from 608 ohm
+      {-23230061L, 519625769UL, 28072U},  // R from 640 ohm
+      {-21196766L, 521422132UL, 26964U},  // R from 672 ohm
+      {-19156593L, 523147516UL, 25918U},  // R from 704 ohm
+      {-17109811L, 524805968UL, 24942U},  // R from 736 ohm
+      {-15056672L, 526401904UL, 24040U},  // R from 768 ohm
+      {-12997412L, 527940099UL, 23218U},  // R from 800 ohm
+      {-10932246L, 529425669UL, 22481U},  // R from 832 ohm
+      {-8861368L, 530864058UL, 21834U},  // R from 864 ohm
+      {-6784953L, 532261025UL, 21282U},  // R from 896 ohm
+      {-4703149L, 533622634UL, 20829U},  // R from 928 ohm
+      {-2616083L, 534955239UL, 20480U},  // R from 960 ohm
+      {-523854L, 536264036UL, 20326U},  // R from 992 ohm
+      {1573470L, 1075124295UL, 20548U},  // R from 1024 ohm
+      {5783451L, 1080384351UL, 20852U},  // R from 1088 ohm
+      {10014132L, 1085722373UL, 21164U},  // R from 1152 ohm
+      {14265820L, 1091140308UL, 21484U},  // R from 1216 ohm
+      {18538833L, 1096640167UL, 21813U},  // R from 1280 ohm
+      {22833493L, 1102224038UL, 22149U},  // R from 1344 ohm
+      {27150134L, 1107894081UL, 22495U},  // R from 1408 ohm
+      {31489096L, 1113652535UL, 22849U},  // R from 1472 ohm
+      {35850730L, 1119501723UL, 23213U},  // R from 1536 ohm
+      {40235394L, 1125444052UL, 23587U},  // R from 1600 ohm
+      {44643457L, 1131482020UL, 23970U},  // R from 1664 ohm
+      {49075297L, 1137618221UL, 24365U},  // R from 1728 ohm
+      {53531305L, 1143855347UL, 24770U},  // R from 1792 ohm
+      {58011879L, 1150196196UL, 25186U},  // R from 1856 ohm
+      {62517431L, 1156643675UL, 25615U},  // R from 1920 ohm
+      {67048382L, 1163200806UL, 26055U},  // R from 1984 ohm
+      {71605184L, 2339674565UL, 26741U},  // R from 2048 ohm
+      {80798060L, 2367053438UL, 27702U},  // R from 2176 ohm
+      {90099810L, 2395416418UL, 28723U},  // R from 2304 ohm
+      {99514396L, 2424823902UL, 29807U},  // R from 2432 ohm
+      {109046028L, 2455341604UL, 30962U},  // R from 2560 ohm
+      {118699181L, 2487041178UL, 32193U},  // R from 2688 ohm
+      {128478627L, 2520000920UL, 33508U},  // R from 2816 ohm
+      {138389455L, 2554306586UL, 34915U},  // R from 2944 ohm
+      {148437109L, 2590052330UL, 36423U},  // R from 3072 ohm
+      {158627415L, 2627341791UL, 38044U},  // R from 3200 ohm
+      {168966629L, 2666289356UL, 39787U},  // R from 3328 ohm
+      {179461475L, 2707021642UL, 41669U},  // R from 3456 ohm
+      {190119200L, 2749679225UL, 43703U},  // R from 3584 ohm
+      {200947633L, 2794418682UL, 45909U},  // R from 3712 ohm
+      {211955248L, 2841415015UL, 48306U},  // R from 3840 ohm
+      {223151247L, 2890864534UL, 50920U},  // R from 3968 ohm
   };
   return kTable;
 }
@@ -348,10 +349,10 @@ inline Pt1000FixedResult pt1000_temperature_q(uint32_t r_q16) {
   const QuadSegmentFixed* q = pt1000_fixed_segments() + (16U * b + k);
 #if defined(__AVR__)
   const int32_t d0 = static_cast<int32_t>(pgm_read_dword(&q->d0));
-  const uint32_t d1 = pgm_read_dword(&q->d1), d2 = pgm_read_dword(&q->d2);
+  const uint32_t d1 = pgm_read_dword(&q->d1), d2 = static_cast<uint32_t>(pgm_read_word(&q->d2)) << (5 + 2 * b);
 #else
   const int32_t d0 = q->d0;
-  const uint32_t d1 = q->d1, d2 = q->d2;
+  const uint32_t d1 = q->d1, d2 = static_cast<uint32_t>(q->d2) << (5 + 2 * b);
 #endif
   r.status = RtdStatus::kOk;
   r.t = d0 + static_cast<int32_t>((fx::mul_hi_round(u, d1 + fx::mul_hi_round(u, d2)) + 128U) >> 8);

@@ -241,7 +241,8 @@ TEST(RtdFloat, FullRangeFloatInverseStaysWithinAMillikelvinScale) {
 // The MCU's table inverse (pt1000_temperature_q, fixed point): every coefficient is the exact
 // double inverse interpolated at the segment's three Chebyshev nodes (recomputed here, so the
 // integers in common/rtd.hpp are provably derived from RtdInverse), written in powers of the
-// position x in [0, 1) from the segment start, in 1/256 mK (d1, d2 scaled by 256).
+// position x in [0, 1) from the segment start, in 1/256 mK (d1, d2 scaled by 256; d2 stored in
+// units of 2^(5 + 2 binade)).
 // The last segments reach past 850 degC: there the closed-form root (exact above 0 degC) continued.
 TEST(RtdFixed, TableCoefficientsAreTheExactInverseAtChebyshevNodes) {
   const auto kd = iec60751<double>(1000.0);
@@ -262,7 +263,7 @@ TEST(RtdFixed, TableCoefficientsAreTheExactInverseAtChebyshevNodes) {
     const double d0 = c0 - c1 + c2, d1 = 2 * c1 - 4 * c2, d2 = 4 * c2;
     EXPECT_NEAR(table[seg].d0, d0 * 256000.0, 0.5 + 1e-6) << "segment " << seg;
     EXPECT_NEAR(table[seg].d1, d1 * 256000.0 * 256, 0.5 + 1e-3) << "segment " << seg;
-    EXPECT_NEAR(table[seg].d2, d2 * 256000.0 * 256, 0.5 + 1e-6) << "segment " << seg;
+    EXPECT_NEAR(table[seg].d2, d2 * 256000.0 * 256 / (1 << (5 + 2 * b)), 0.5 + 1e-6) << "segment " << seg;
   }
 }
 
