@@ -43,6 +43,7 @@ struct FitArgs {
   std::vector<std::string> columns;
   double sum_c = std::nan("");
   bool json_out = false, joint_only = false;
+  int iterations = FitOptions{}.max_iterations;
 };
 
 void run_fit(const FitArgs& a) {
@@ -66,6 +67,7 @@ void run_fit(const FitArgs& a) {
   o.sum_capacitance_J_per_K = a.sum_c;
   o.initial_state = a.initial == "first" ? InitialState::FirstSamples : InitialState::Estimate;
   o.staged = !a.joint_only;
+  o.max_iterations = a.iterations;
   o.progress = [](const std::string& s) { std::cerr << "fit: " << s << "\n"; };
   FitResult fit;
   try {
@@ -89,7 +91,9 @@ void run_fit(const FitArgs& a) {
     std::cout << "gauge: " << fit.gauge << "\n";
     for (const auto& w : fit.warnings) std::cout << "warning: " << w << "\n";
   }
-  if (!fit.converged) throw CommandError(kExitFailure, "the fit did not converge (see warnings)");
+  if (!fit.converged)
+    throw CommandError(kExitFailure, fmt::format("the fit did not converge within {} iterations of its final stage (see "
+                                                 "warnings; --iterations raises the limit)", a.iterations));
 }
 
 // ------------------------------------------------------------------------------------- validate
@@ -308,6 +312,10 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("--initial", a->initial, "Initial state per recording: estimate (default) or first (first samples)")
         ->check(CLI::IsMember({"estimate", "first"}));
     c->add_flag("--joint-only", a->joint_only, "Skip the staged pipeline (needs initial values in the network JSON)");
+    c->add_option("--iterations", a->iterations,
+                  "Levenberg-Marquardt iterations of the final joint stage (default " + std::to_string(a->iterations) +
+                      "; the start stages use 60)")
+        ->check(CLI::PositiveNumber);
     c->add_flag("--json", a->json_out, "Print the model JSON (parameters, sigma, ...) to stdout");
     c->callback([a] { run_fit(*a); });
   }

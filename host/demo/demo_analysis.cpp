@@ -103,6 +103,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   thermal::FitOptions fo;
   fo.sum_capacitance_J_per_K = 20478.7;  // the spindle's mass x c_p: the scale gauge
   fo.max_iterations = 400;
+  fo.start_iterations = 400;
   fo.progress = [&](const std::string& s) { progress("fit: " + s); };
   progress(fmt::format("fitting spindle4 (T1..T3 and the shaft on T5 measured) to {} recordings", fit_recs.size()));
   const thermal::FitResult fit = thermal::fit_network(net, fit_recs, fo);

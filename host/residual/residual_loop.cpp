@@ -311,6 +311,7 @@ LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& bas
     // it (dBIC, check factor), and a base stopped short of its optimum hands each candidate the rest
     // of the base fit as a spurious "improvement" (seen on tests/data/incubator-dt).
     fo.max_iterations = std::max({o.max_iterations, o.refine_iterations, 60});
+    fo.start_iterations = fo.max_iterations;
     fo.progress = o.progress;
     if (base_params_in.size() == base.param_count()) fo.start = base_params_in;
     L.base_fit = th::fit_network(base, fit, fo);

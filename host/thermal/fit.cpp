@@ -185,7 +185,7 @@ class FitPipeline {
     const auto t0 = Clock::now();
     say(name + ": " + std::to_string(pr.nf()) + " parameters, " + std::to_string(pr.runs.size()) + " runs ...");
     LmOptions lm;
-    lm.max_iterations = opts_.max_iterations;
+    lm.max_iterations = final_stage ? opts_.max_iterations : opts_.start_iterations;
     lm.relative_tolerance = opts_.relative_tolerance;
     lm.restarts = final_stage ? 4 : 0;
     LmOutcome o = levenberg_marquardt(pr, lm);
@@ -346,9 +346,9 @@ class FitPipeline {
     res_.residual_count = fin.ev.count;
     res_.rms_K = fin.ev.count ? std::sqrt(fin.ev.ssr / static_cast<double>(fin.ev.count)) : 0.0;
     res_.free_parameter_count = pr.nf();
-    estimate_uncertainty(net_, held_, pr, fin, opts_, res_);
     for (std::size_t r = 0; r < recs_.size(); ++r)
       res_.residuals_K.push_back(prediction_residuals(net_, res_.params, recs_[r], res_.initial_states[r], extra_of(r)));
+    estimate_uncertainty(net_, held_, pr, fin, opts_, res_);
     if (!res_.converged) res_.warnings.push_back("the final stage stopped at the iteration limit before converging");
     res_.seconds = seconds_since(t_start_);
   }

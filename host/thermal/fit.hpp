@@ -54,8 +54,18 @@ struct FitOptions {
   std::vector<std::string> free_only; // if not empty: fit only these parameters, hold the rest
   std::vector<std::string> hold;      // parameters held at their start value in addition to "fixed"
   std::vector<Eigen::MatrixXd> extra_heat_w;  // optional, per recording rows x nodes, W (known inputs)
-  int max_iterations = 60;            // per Levenberg-Marquardt stage
+  // Levenberg-Marquardt iterations of the final (joint) stage. 300 converges on the demo's
+  // recordings (tests/data/demo-warmups: 96) and on clean module recordings (<= 160 over 8 seeds),
+  // where 60 stopped early.
+  int max_iterations = 300;
+  // ... of each start stage (2 and 3): they only start the final stage, and a start in a far basin
+  // (stage 3's neutral start on the reference recordings) crawls for hundreds of iterations.
+  int start_iterations = 60;
   double relative_tolerance = 1e-10;  // stop when the cost decreases less than this (relative)
+  // Sigma from the residuals as they are: the covariance is the sandwich H^-1 M H^-1 with M the
+  // long-run (Bartlett) covariance of the scores over each run's residual autocorrelation
+  // bandwidth. false = the classical s^2 H^-1, which assumes white residuals.
+  bool correlated_residuals = true;
   double weak_relative_sigma = 0.05;  // 1 sigma above this fraction of |value| = weakly identified
   double unidentifiable_relative_sigma = 0.5;  // ... above this = not identifiable
   double correlation_warning = 0.99;  // |correlation| above this is reported
@@ -68,7 +78,7 @@ const char* identifiability_name(Identifiability i);
 struct ParameterEstimate {
   std::string name, unit;
   double value = 0;
-  double sigma = 0;                 // 1 sigma, Gauss-Newton, scaled by the residual variance
+  double sigma = 0;                 // 1 sigma, see FitOptions::correlated_residuals and FitResult::sigma_method
   Identifiability status = Identifiability::Good;
   bool at_bound = false;
   std::string note;                 // correlation / singular-direction warnings
@@ -91,6 +101,8 @@ struct FitResult {
   double residual_sigma_K = 0;                // sqrt(SSR / (N - free unknowns))
   std::size_t residual_count = 0;
   int free_parameter_count = 0;
+  std::vector<int> correlation_rows;          // per recording: residual autocorrelation bandwidth used for sigma, rows
+  std::string sigma_method;                   // how sigma was computed, in words
   double condition_number = 0;                // of the scaled normal matrix (params + initial states)
   std::string gauge;                          // how the scale gauge was fixed
   bool converged = false;

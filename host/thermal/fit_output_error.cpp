@@ -98,7 +98,7 @@ Evaluation OutputErrorEvaluator::evaluate(const Eigen::VectorXd& u, bool with_ja
 template <class Sink>
 void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink&& sink) const {
   const int n = pr_.n(), nf = pr_.nf();
-  Eigen::MatrixXd S(n, nf), X(n, n), Snext(n, nf), Xnext(n, n), D(n, nf);
+  Eigen::MatrixXd S(n, nf), X(n, n), Snext(n, nf), Xnext(n, n);
   Eigen::VectorXd x(n), xnext(n), dv(n * nf), extra(n);
   const Run& run = pr_.runs[ri];
   const Recording& rec = *run.rec;
@@ -128,27 +128,29 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
     if (k == run.end) break;
     const double amb = rec.ambient_c[k];
     const KeyData& kd = keys_.find(key_of(run, k))->second;
-    xnext.noalias() = kd.base.Phi * x;
+    xnext.noalias() = kd.base.Phi.lazyProduct(x);
     xnext += kd.base.drive + kd.base.ambient_gain * amb;
     for (Eigen::Index b = 0; b < nb; ++b) xnext += kd.base.boundary_gain.col(b) * run.inputs->boundary_c(kr, b);
     if (run.extra) {
       extra = run.extra->row(kr).transpose();
-      xnext.noalias() += kd.base.Gamma * extra;
+      xnext.noalias() += kd.base.Gamma.lazyProduct(extra);
     }
     if (with_jacobian) {
-      dv.noalias() = kd.dphi_stack * x;
-      if (run.extra) dv.noalias() += kd.dgamma_stack * extra;
-      D = Eigen::Map<const Eigen::MatrixXd>(dv.data(), n, nf);
-      D += kd.ddrive + kd.damb * amb;
-      for (Eigen::Index b = 0; b < nb; ++b) D += kd.dbnd[static_cast<std::size_t>(b)] * run.inputs->boundary_c(kr, b);
-      Snext.noalias() = kd.base.Phi * S;
-      S = Snext + D;
+      // S' = Phi S + dPhi/dz x (+ dGamma/dz extra) + d drive/dz + d ambient_gain/dz amb (+ boundary
+      // terms); the small products are coefficient loops (lazyProduct) and the buffers swap rather
+      // than copy: at n = 4 the call overhead of a general product is most of the work.
+      dv.noalias() = kd.dphi_stack.lazyProduct(x);
+      if (run.extra) dv.noalias() += kd.dgamma_stack.lazyProduct(extra);
+      Snext.noalias() = kd.base.Phi.lazyProduct(S);
+      Snext += Eigen::Map<const Eigen::MatrixXd>(dv.data(), n, nf) + kd.ddrive + kd.damb * amb;
+      for (Eigen::Index b = 0; b < nb; ++b) Snext += kd.dbnd[static_cast<std::size_t>(b)] * run.inputs->boundary_c(kr, b);
+      S.swap(Snext);
       if (pr_.estimate_x0) {
-        Xnext.noalias() = kd.base.Phi * X;
-        X = Xnext;
+        Xnext.noalias() = kd.base.Phi.lazyProduct(X);
+        X.swap(Xnext);
       }
     }
-    x = xnext;
+    x.swap(xnext);
   }
 }
 
@@ -193,6 +195,20 @@ void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int 
     ev.H.block(off, 0, n, nf) += Hl.bottomLeftCorner(n, nf);
     ev.g.segment(off, n) += gl.tail(n);
   }
+}
+
+Eigen::MatrixXd OutputErrorEvaluator::row_scores(std::size_t ri, const Eigen::VectorXd& u) {
+  apply(u);
+  build_keys(true);
+  const int n = pr_.n(), nf = pr_.nf();
+  const Run& run = pr_.runs[ri];
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(run.end - run.begin + 1), nf + (pr_.estimate_x0 ? n : 0));
+  simulate_run(ri, true, [&](std::size_t row, double r, const auto& dp, const auto& dx) {
+    const auto k = static_cast<Eigen::Index>(row);
+    G.row(k).head(nf) += r * dp;
+    if (pr_.estimate_x0) G.row(k).tail(n) += r * dx;
+  });
+  return G;
 }
 
 void OutputErrorEvaluator::gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const {

@@ -78,6 +78,12 @@ class OutputErrorEvaluator {
   Evaluation evaluate(const Eigen::VectorXd& u, bool with_jacobian);
   // Writes u into the problem's parameter values and initial states.
   void apply(const Eigen::VectorXd& u);
+  // The score of every row of run `ri` at u: g_t = sum over the row's measured cells of
+  // residual * d residual / d (free parameters, then the run's initial state when estimated),
+  // rows x (nf [+ n]). Its autocorrelation over rows is what the parameter covariance needs when
+  // the residuals are not white (fit_uncertainty.hpp).
+  Eigen::MatrixXd row_scores(std::size_t ri, const Eigen::VectorXd& u);
+
   static constexpr double kGaugeWeight = 1e4;
 
  private:

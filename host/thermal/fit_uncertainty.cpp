@@ -11,6 +11,50 @@
 
 namespace btsm::thermal::fitting {
 
+int residual_correlation_rows(const Eigen::MatrixXd& residuals) {
+  const Eigen::Index rows = residuals.rows();
+  int widest = 0;
+  for (Eigen::Index c = 0; c < residuals.cols(); ++c) {
+    double mean = 0;
+    int count = 0;
+    for (Eigen::Index k = 0; k < rows; ++k)
+      if (std::isfinite(residuals(k, c))) { mean += residuals(k, c); ++count; }
+    if (count < 8) continue;
+    mean /= count;
+    Eigen::VectorXd x(rows);  // centred, missing cells 0 (they add nothing to the sums)
+    for (Eigen::Index k = 0; k < rows; ++k) x[k] = std::isfinite(residuals(k, c)) ? residuals(k, c) - mean : 0.0;
+    const double c0 = x.squaredNorm();
+    if (!(c0 > 0)) continue;
+    auto rho = [&](Eigen::Index lag) { return x.head(rows - lag).dot(x.tail(rows - lag)) / c0; };
+    // Geyer's initial positive sequence: the lags while the sum of neighbouring pairs stays positive.
+    int lag = 0;
+    for (Eigen::Index l = 1; l + 1 < rows / 4; l += 2) {
+      if (rho(l) + rho(l + 1) <= 0) break;
+      lag = static_cast<int>(l + 1);
+    }
+    widest = std::max(widest, lag);
+  }
+  return widest;
+}
+
+Eigen::MatrixXd long_run_covariance(const Eigen::MatrixXd& scores, int bandwidth_rows) {
+  // h_t = sum_l (1 - |l|/(L+1)) g_{t+l} is the triangle-weighted sum, computed as two running box
+  // sums of width L+1 (a triangle is a box convolved with a box), so the cost does not grow with L.
+  const Eigen::Index rows = scores.rows(), cols = scores.cols();
+  const Eigen::Index w = bandwidth_rows + 1;
+  Eigen::MatrixXd prefix = Eigen::MatrixXd::Zero(rows + 1, cols);
+  for (Eigen::Index t = 0; t < rows; ++t) prefix.row(t + 1) = prefix.row(t) + scores.row(t);
+  Eigen::MatrixXd box = Eigen::MatrixXd::Zero(rows + w, cols);  // box[t] = sum g[t-L .. t]
+  for (Eigen::Index t = 0; t < rows + w - 1; ++t)
+    box.row(t) = prefix.row(std::min(t + 1, rows)) - prefix.row(std::max<Eigen::Index>(0, t - w + 1));
+  Eigen::MatrixXd box_prefix = Eigen::MatrixXd::Zero(rows + w + 1, cols);
+  for (Eigen::Index t = 0; t < rows + w; ++t) box_prefix.row(t + 1) = box_prefix.row(t) + box.row(t);
+  Eigen::MatrixXd h(rows, cols);  // sum box[t .. t+L] / (L+1)
+  for (Eigen::Index t = 0; t < rows; ++t) h.row(t) = (box_prefix.row(t + w) - box_prefix.row(t)) / static_cast<double>(w);
+  Eigen::MatrixXd m = scores.transpose() * h;
+  return 0.5 * (m + m.transpose());
+}
+
 void estimate_uncertainty(const Network& net, const std::vector<bool>& held, const OutputErrorProblem& pr,
                           const LmOutcome& fin, const FitOptions& opts, FitResult& res) {
   const int np = net.param_count();
@@ -29,8 +73,35 @@ void estimate_uncertainty(const Network& net, const std::vector<bool>& held, con
   res.condition_number = lam.minCoeff() > 0 ? lmax / lam.minCoeff() : std::numeric_limits<double>::infinity();
   Eigen::VectorXd lam_inv(nu);
   for (int i = 0; i < nu; ++i) lam_inv[i] = lam[i] > 1e-14 * lmax ? 1.0 / lam[i] : 0.0;
-  const Eigen::MatrixXd cov_z = dsc.asDiagonal() * (es.eigenvectors() * lam_inv.asDiagonal() * es.eigenvectors().transpose()) *
-                                dsc.asDiagonal() * s2;
+  const Eigen::MatrixXd h_inv =
+      dsc.asDiagonal() * (es.eigenvectors() * lam_inv.asDiagonal() * es.eigenvectors().transpose()) * dsc.asDiagonal();
+  Eigen::MatrixXd cov_z = h_inv * s2;
+  res.correlation_rows.assign(pr.runs.size(), 0);
+  res.sigma_method = "1 sigma from the Gauss-Newton covariance scaled by the residual variance (assumes white residuals)";
+  if (opts.correlated_residuals) {
+    // Sandwich H^-1 M H^-1 with M the long-run covariance of the scores J^T r: residuals that
+    // stay on one side for hours carry far less information than their count says.
+    OutputErrorProblem at = pr;
+    OutputErrorEvaluator evaluator(at);
+    Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(nu, nu);
+    const int nf = pr.nf(), n = pr.n();
+    for (std::size_t r = 0; r < pr.runs.size(); ++r) {
+      const int bw = residual_correlation_rows(res.residuals_K[r]);
+      res.correlation_rows[r] = bw;
+      const Eigen::MatrixXd m = long_run_covariance(evaluator.row_scores(r, fin.u), bw);
+      meat.topLeftCorner(nf, nf) += m.topLeftCorner(nf, nf);
+      if (pr.estimate_x0) {
+        const int off = nf + static_cast<int>(r) * n;
+        meat.block(off, off, n, n) += m.bottomRightCorner(n, n);
+        meat.block(0, off, nf, n) += m.topRightCorner(nf, n);
+        meat.block(off, 0, n, nf) += m.bottomLeftCorner(n, nf);
+      }
+    }
+    const double small_sample = dof > 0 ? static_cast<double>(fin.ev.count) / dof : 1.0;
+    cov_z = h_inv * meat * h_inv * small_sample;
+    res.sigma_method = "1 sigma from the sandwich covariance H^-1 M H^-1, M the Bartlett long-run covariance of the "
+                       "scores over each recording's residual autocorrelation (fit.recordings[].residual_correlation_rows)";
+  }
   res.covariance = Eigen::MatrixXd::Zero(np, np);
   Eigen::VectorXd dpdz(pr.nf());
   for (int j = 0; j < pr.nf(); ++j) dpdz[j] = pr.tf[static_cast<std::size_t>(j)].dp_dz(fin.u[j]);

@@ -22,7 +22,7 @@ nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std
   }
   j["parameters"] = values;
   j["sigma"] = sigma;
-  j["sigma_note"] = "1 sigma from the Gauss-Newton covariance scaled by the residual variance (fixed: 0)";
+  j["sigma_note"] = fit.sigma_method + " (fixed: 0)";
   j["units"] = units;
   j["identifiability"] = status;
   j["notes"] = notes.is_null() ? nlohmann::json::object() : notes;
@@ -40,6 +40,7 @@ nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std
   j["recordings"] = nlohmann::json::array();
   for (std::size_t r = 0; r < recs.size(); ++r) {
     nlohmann::json rj{{"file", recs[r].source}, {"rows", recs[r].rows()}};
+    if (r < fit.correlation_rows.size()) rj["residual_correlation_rows"] = fit.correlation_rows[r];
     if (r < fit.initial_states.size()) {
       std::vector<double> x(fit.initial_states[r].data(), fit.initial_states[r].data() + fit.initial_states[r].size());
       rj["initial_state_c"] = x;
