@@ -4,7 +4,11 @@
 usage: python3 prepare.py [/work/shared/data/incubator-dt]
 Writes next to this script:
   calib2023_fit_0-55min.csv, calib2023_check_55-111min.csv   (20230501_calibration_empty_system.csv)
-  lid2021_fit_0-34min.csv,   lid2021_check_34-323min.csv     (lid_opening_experiment_mar_2021.csv)
+  lid2021_fit_0-34min.csv,   lid2021_check_34-323min.csv     (lid_opening_experiment_mar_2021.csv, the
+                                                              first cut: no lid opening in the fit part)
+  lid2021_events_fit_0-170min.csv, lid2021_events_check_170-323min.csv
+                                                             (the same run with the logged lid state as a
+                                                              declared event column, fit part with 6 openings)
 
 Input mapping (the network format has one input column, `speed_rpm`, and sources proportional to
 (speed_rpm / speed_ref_rpm)^e): speed_rpm := electrical heater power in W while heater_on, else 0.
@@ -30,19 +34,27 @@ def load(name, amb, box):
     return out, t0
 
 
-def write(path, rows, power_w, box, header_lines, offset):
+def write(path, rows, power_w, box, header_lines, offset, lid_intervals=None):
+    """lid_intervals: [(open_s, close_s)] in the same time base as rows; when given, a declared 0/1 event
+    column `lid_open` is written. Like speed_rpm, an event cell on row k holds over [t_k, t_k+1), so a row
+    is 1 when the lid was open at its time stamp."""
     with open(os.path.join(HERE, path), "w", newline="\n") as f:
         for h in header_lines:
             f.write("# " + h + "\n")
         f.write(f"# original_time_offset_s: {offset:.1f}\n")
-        f.write(f"time_s,speed_rpm,ambient_c,box_avg,{box[0]},{box[1]}\n")
+        if lid_intervals is not None:
+            f.write("# event_columns: lid_open\n")
+        f.write(f"time_s,speed_rpm,ambient_c,box_avg,{box[0]},{box[1]}" + (",lid_open" if lid_intervals is not None else "") + "\n")
         last = None
         for t, on, amb, avg, a, b in rows:
             ts = round(t - offset, 1)
             if last is not None and ts <= last:
                 raise SystemExit(f"{path}: time not increasing at {ts}")
             last = ts
-            f.write(f"{ts:.1f},{power_w if on else 0},{amb:g},{avg:g},{a:g},{b:g}\n")
+            line = f"{ts:.1f},{power_w if on else 0},{amb:g},{avg:g},{a:g},{b:g}"
+            if lid_intervals is not None:
+                line += ",1" if any(o <= t < c for o, c in lid_intervals) else ",0"
+            f.write(line + "\n")
     print(path, len(rows))
 
 
@@ -82,3 +94,25 @@ chk = [r for r in rows if r[0] >= split]
 lid_chk = [f"lid events (s since the first sample of THIS file): " + ", ".join(
     f"{e['code']} {(int(e['time']) - t0) / 1e9 - chk[0][0]:.0f}" for e in events)]
 write("lid2021_check_34-323min.csv", chk, P_2021_W, ("t2", "t3"), common + lid_chk, chk[0][0])
+
+# --- the same 2021 run, re-cut so that the fit part holds openings, with the logged lid state as a declared
+# event column. The fit part ends at 170 min (10,200 s): six openings (34, 61, 86, 111, 137, 162 min) and the cup
+# of water put in at 137 min; the check part (170-323 min) holds the seventh opening and the water's removal
+# (294 min). Open/close come from the events file (10 s resolution, entered by hand during the experiment).
+opens = [(int(e["time"]) - t0) / 1e9 for e in events if e["code"] == "lid_open"]
+closes = [(int(e["time"]) - t0) / 1e9 for e in events if e["code"] == "lid_close"]
+if len(opens) != len(closes) or any(c <= o for o, c in zip(opens, closes)):
+    raise SystemExit("lid events: open/close do not pair up")
+lid_intervals = list(zip(opens, closes))
+split = 170 * 60.0
+objects = ", ".join(f"{e['code']} {(int(e['time']) - t0) / 1e9:.0f}" for e in events if e["code"].startswith("object"))
+ev_common = common + [
+    "lid_open: 1 while the lid was open per the experiment's events.csv (lid_open/lid_close, same folder, "
+    "times entered to 10 s), else 0; declared below as an event column",
+    f"not in any column: a cup of water put into the box and taken out (s since the first sample of the run): {objects}",
+]
+write("lid2021_events_fit_0-170min.csv", [r for r in rows if r[0] < split], P_2021_W, ("t2", "t3"), ev_common, 0.0,
+      lid_intervals)
+chk = [r for r in rows if r[0] >= split]
+write("lid2021_events_check_170-323min.csv", chk, P_2021_W, ("t2", "t3"), ev_common, chk[0][0],
+      lid_intervals)
