@@ -50,6 +50,8 @@
 
 #include <stdint.h>
 
+#include "fixed_point.hpp"
+
 namespace btsm {
 
 // Wire values (2 bits).
@@ -324,39 +326,35 @@ class RiseRate {
   void set_dt_ms(uint16_t dt_ms) { dt_ms_ = dt_ms; reset(); }
   void reset() { count_ = 0; head_ = 0; }
 
-  // Returns the current rate in mK/min (or kDiagNoValue).
-  int32_t push(int32_t t_mK) {
-    int32_t oldest;
-    if (!store(t_mK, oldest)) return kDiagNoValue;
-    // Float, not int64: avoids pulling 64-bit division into the AVR image; 24-bit mantissa is
-    // plenty for a rate compared against thresholds in mK/min.
-    const float span_min = static_cast<float>(dt_ms_) * static_cast<float>(kWindow - 1) / 60000.0f;
-    return round_rate(static_cast<float>(t_mK - oldest) / span_min);
-  }
+  // Returns the current rate in mK/min (or kDiagNoValue): push_scaled() with the Scale of dt_ms().
+  int32_t push(int32_t t_mK) { return push_scaled(t_mK, scale_for(dt_ms_)); }
 
-  // What push_scaled() needs for one dt: twice the factor per_min = 1 / window span in minutes,
-  // and the largest |window difference| whose rate stays below 2^24 mK/min (a larger one clamps).
+  // What push_scaled() needs for one dt, in integers: the factor per_min = 60000 / (dt (kWindow - 1))
+  // (1 / the window span in minutes) as its integer part and a 32-bit fraction, and the largest
+  // |window difference| whose rate is computed (a larger one is clamped). The firmware's channels
+  // share the sample period, so it is computed when the period changes (one 32-bit division and
+  // a shift-and-subtract fraction), never per sample. Integers, not float: the soft-float library
+  // costs the image ~1.1 KB of flash wherever one float operation remains.
   struct Scale {
-    float twice_per_min;
-    int32_t max_diff;
+    uint32_t per_min_frac;  // fractional part of per_min, x 2^32 (rounded)
+    uint32_t max_diff;      // |diff| above this gives +-kDiagMaxRate
+    uint16_t per_min_int;   // integer part of per_min (<= 60000)
   };
-  static float per_min_factor(uint16_t dt_ms) {
-    return 60000.0f / (static_cast<float>(dt_ms) * static_cast<float>(kWindow - 1));
-  }
   static Scale scale_for(uint16_t dt_ms) {
-    const float per_min = per_min_factor(dt_ms);
-    Scale s;
-    s.twice_per_min = 2.0f * per_min;
-    s.max_diff = static_cast<int32_t>(16777216.0f / per_min);
+    Scale s = {0, 0, 0};  // dt 0: every non-zero difference clamps (store() yields no rate then)
+    const uint32_t span = static_cast<uint32_t>(dt_ms) * static_cast<uint32_t>(kWindow - 1);
+    if (span == 0) return s;
+    s.per_min_int = static_cast<uint16_t>(60000UL / span);
+    s.per_min_frac = fx::frac_q32(60000UL % span, span);
+    // |diff| <= max_diff keeps |diff| per_min_int <= 2^23 (the sum in scaled_rate() stays below
+    // 2^24), and |diff| > max_diff means a rate above 2^23, which clamps anyway. Without an
+    // integer part, (span / 60000 + 1) 2^23 >= 2^23 / per_min (< 2^32 for every uint16 dt and
+    // kWindow <= 255).
+    s.max_diff = s.per_min_int != 0 ? (1UL << 23) / s.per_min_int : (span / 60000UL + 1U) << 23;
     return s;
   }
 
-  // Same, with the Scale of dt_ms() supplied by the caller: channels with one sample period share
-  // it, and it only changes with the period (two divisions then, none per sample). The rate is
-  // exactly round_rate(diff * per_min) (diff * twice_per_min is twice that product, exactly), but
-  // the clamp is an integer test of diff and the rounding halves the truncated double in
-  // integers: one multiplication and two conversions, no float comparison or addition. It may
-  // differ from push() (a division) in the last float bit, i.e. by 1 mK/min in rare cases.
+  // Same as push(), with the Scale of dt_ms() supplied by the caller (see Scale).
   int32_t push_scaled(int32_t t_mK, const Scale& s) {
     int32_t oldest;
     if (!store(t_mK, oldest)) return kDiagNoValue;
@@ -375,21 +373,26 @@ class RiseRate {
     oldest = buf_[head_];  // next slot to be overwritten = oldest sample
     return true;
   }
+
+  // diff x per_min rounded to nearest (ties away from zero) and clamped to +-kDiagMaxRate:
+  // |diff| per_min_int exactly plus round(|diff| per_min_frac / 2^32) (an integer added to a
+  // rounded part is the rounded sum). per_min_frac is within 2^-33 of the true fraction, so the
+  // result is the exactly rounded rate unless that lies within |diff| 2^-33 of a tie (the rates
+  // that are not clamped: <= 2^-10 mK/min when per_min >= 1, <= 2^-10 / per_min otherwise, i.e.
+  // <= 2^-8 for kWindow <= 4 and every uint16 dt); then it may be 1 mK/min off.
+  // One 32 x 16 and one 32 x 32 product (fx::mul_hi_round), no division.
   static int32_t scaled_rate(int32_t diff, const Scale& s) {
-    if (diff > s.max_diff) return kDiagMaxRate;
-    if (diff < -s.max_diff) return -kDiagMaxRate;
-    const int32_t twice = static_cast<int32_t>(static_cast<float>(diff) * s.twice_per_min);
-    const int32_t r = twice >= 0 ? (twice + 1) >> 1 : -((1 - twice) >> 1);  // halves away from zero
-    return r > kDiagMaxRate ? kDiagMaxRate : (r < -kDiagMaxRate ? -kDiagMaxRate : r);
+    const bool negative = diff < 0;
+    const uint32_t mag = negative ? 0U - static_cast<uint32_t>(diff) : static_cast<uint32_t>(diff);
+    uint32_t rate = static_cast<uint32_t>(kDiagMaxRate);
+    if (mag <= s.max_diff) {
+      rate = mag * s.per_min_int + fx::mul_hi_round(mag, s.per_min_frac);
+      if (rate > static_cast<uint32_t>(kDiagMaxRate)) rate = static_cast<uint32_t>(kDiagMaxRate);
+    }
+    return negative ? -static_cast<int32_t>(rate) : static_cast<int32_t>(rate);
   }
 
  private:
-  static int32_t round_rate(float rate) {
-    if (rate > 8388607.0f) rate = 8388607.0f;
-    if (rate < -8388607.0f) rate = -8388607.0f;
-    return static_cast<int32_t>(rate < 0.0f ? rate - 0.5f : rate + 0.5f);
-  }
-
   int32_t buf_[kWindow] = {};
   uint16_t dt_ms_;
   uint8_t count_ = 0;

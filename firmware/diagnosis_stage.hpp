@@ -97,9 +97,9 @@ class DiagnosisStage {
     if (fault || t_mK == wire::kMissing) {
       rise_[j].reset();
     } else if (rise_[j].store(t_mK, oldest) && lim.max_rise_mK_per_min != 0) {
-      // The rate (a float multiplication and two conversions) only where a limit checks it, and
-      // its scale (two float divisions) only once a rate is due: the channels share the sample
-      // period, so the scale is computed when the window dt changes (scale_dt_ = 0: none yet).
+      // The rate (two integer products) only where a limit checks it, and its scale (a division
+      // and a 32-step fraction) only once a rate is due: the channels share the sample period, so
+      // the scale is computed when the window dt changes (scale_dt_ = 0: none yet).
       if (rise_[j].dt_ms() != scale_dt_) {
         scale_dt_ = rise_[j].dt_ms();
         scale_ = RiseRate<kRiseWindow>::scale_for(scale_dt_);
@@ -128,7 +128,7 @@ class DiagnosisStage {
   DiagChannel ch_[kChannels];
   DiagTiming timing_;
   Rise rise_[kChannels];
-  RiseRate<kRiseWindow>::Scale scale_ = {0.0f, 0};
+  RiseRate<kRiseWindow>::Scale scale_ = {0, 0, 0};
   uint16_t scale_dt_ = 0;
   uint8_t mask_ = 0;
   bool fault_[kChannels] = {false, false, false, false, false};

@@ -6,6 +6,7 @@
 
 #include <cmath>
 #include <random>
+#include <string>
 
 namespace btsm {
 namespace {
@@ -231,34 +232,79 @@ TEST(DiagnosisOverall, WorstStateRanksAlarmAboveFault) {
 }
 
 // push_scaled (the firmware's: the scale computed once per sample period, integer clamp and
-// rounding) gives exactly the float rounding of diff * per_min that it replaces, for every window
-// difference class: small, near the rounding ties, near and beyond the clamp, and odd periods.
-TEST(RiseRate, ScaledPushIsTheRoundedFloatProduct) {
-  const auto reference = [](int32_t diff, float per_min) {
-    float rate = static_cast<float>(diff) * per_min;
-    if (rate > 8388607.0f) rate = 8388607.0f;
-    if (rate < -8388607.0f) rate = -8388607.0f;
-    return static_cast<int32_t>(rate < 0.0f ? rate - 0.5f : rate + 0.5f);
+// rounding, no float) against the exact rational rate diff x 60000 / (dt (W - 1)) rounded half away
+// from zero and clamped, computed in int64: equal, except within the documented bound of a rounding
+// tie (2^-8 mK/min for the firmware's window of 4, 2^-6 for 13) where 1 mK/min is allowed (and
+// counted in the test's properties). Every window difference class:
+// small, near the rounding ties, near and beyond the clamp, the int32 extremes, odd periods, and
+// the window of the firmware (4) and longer ones.
+template <uint8_t kWindow>
+void check_scaled_rates_are_exactly_rounded(std::mt19937& rng) {
+  struct Exact {
+    int64_t rate;
+    bool near_tie;  // within the bound of a tie
   };
-  std::mt19937 rng(9);
-  for (uint16_t dt : {1u, 7u, 100u, 1000u, 3333u, 5000u, 5001u, 12345u, 60000u, 65535u}) {
-    const auto scale = RiseRate<4>::scale_for(dt);
-    const float per_min = RiseRate<4>::per_min_factor(dt);
-    for (int i = 0; i < 200000; ++i) {
+  const int64_t tie_window_inv = kWindow <= 4 ? 256 : 64;  // 1 / the bound
+  const auto exact = [tie_window_inv](int32_t diff, uint16_t dt) {
+    const int64_t span = static_cast<int64_t>(dt) * (kWindow - 1);
+    const int64_t mag = diff < 0 ? -static_cast<int64_t>(diff) : diff;
+    const int64_t num = mag * 60000;
+    const int64_t twice_rem = 2 * (num % span);
+    int64_t r = (2 * num + span) / (2 * span);  // half up on the magnitude
+    if (r > kDiagMaxRate) r = kDiagMaxRate;
+    const int64_t from_tie = twice_rem > span ? twice_rem - span : span - twice_rem;  // x 1/(2 span)
+    return Exact{diff < 0 ? -r : r, from_tie * tie_window_inv <= 2 * span};
+  };
+  long near_tie_off = 0, cases = 0;
+  for (uint16_t dt : {1u, 7u, 100u, 1000u, 3333u, 5000u, 5001u, 12345u, 20000u, 60000u, 65535u}) {
+    const auto scale = RiseRate<kWindow>::scale_for(dt);
+    const double per_min = 60000.0 / (static_cast<double>(dt) * (kWindow - 1));
+    for (int i = 0; i < 100000; ++i) {
       int32_t diff;
-      switch (i % 4) {
+      switch (i % 5) {
         case 0: diff = static_cast<int32_t>(rng() % 20001) - 10000; break;
         case 1: diff = static_cast<int32_t>(rng() % 16777215) - 8388607; break;
         case 2: diff = static_cast<int32_t>(std::lround((static_cast<int32_t>(rng() % 2000001) - 1000000 + 0.5) / per_min)) +
                        static_cast<int32_t>(rng() % 3) - 1; break;  // rates near k + 1/2
-        default: diff = static_cast<int32_t>(std::lround(8388607.0 / per_min)) * (rng() % 2 ? 1 : -1) +
-                        static_cast<int32_t>(rng() % 41) - 20; break;  // near the clamp
+        case 3: diff = static_cast<int32_t>(std::lround(8388607.0 / per_min)) * (rng() % 2 ? 1 : -1) +
+                       static_cast<int32_t>(rng() % 41) - 20; break;  // near the clamp
+        default: diff = static_cast<int32_t>(rng()); break;  // anywhere in int32
       }
-      RiseRate<4> r(dt);
-      for (int k = 0; k < 3; ++k) ASSERT_EQ(r.push_scaled(0, scale), kDiagNoValue);
-      ASSERT_EQ(r.push_scaled(diff, scale), reference(diff, per_min)) << "dt " << dt << " diff " << diff;
+      if (i == 0) diff = -2147483647 - 1;
+      if (i == 5) diff = 2147483647;
+      RiseRate<kWindow> r(dt);
+      for (int k = 0; k + 1 < kWindow; ++k) ASSERT_EQ(r.push_scaled(0, scale), kDiagNoValue);
+      const int32_t got = r.push_scaled(diff, scale);
+      const Exact want = exact(diff, dt);
+      ++cases;
+      if (want.near_tie) {
+        ASSERT_LE(std::llabs(got - want.rate), 1) << "W " << int(kWindow) << " dt " << dt << " diff " << diff;
+        near_tie_off += got != want.rate;
+      } else {
+        ASSERT_EQ(got, want.rate) << "W " << int(kWindow) << " dt " << dt << " diff " << diff;
+      }
+      ASSERT_EQ(RiseRate<kWindow>::scaled_rate(diff, scale), got);
     }
   }
+  ::testing::Test::RecordProperty("off_by_one_near_a_tie_W" + std::to_string(kWindow), std::to_string(near_tie_off) + " of " + std::to_string(cases));
+}
+
+TEST(RiseRate, ScaledPushIsTheExactlyRoundedRate) {
+  std::mt19937 rng(9);
+  check_scaled_rates_are_exactly_rounded<4>(rng);
+  check_scaled_rates_are_exactly_rounded<2>(rng);
+  check_scaled_rates_are_exactly_rounded<13>(rng);
+}
+
+// A period of 0 yields no rate (store() reports none due); its Scale clamps every non-zero
+// difference rather than dividing by zero.
+TEST(RiseRate, ZeroPeriodGivesNoRateAndAClampingScale) {
+  RiseRate<4> r(0);
+  for (int k = 0; k < 6; ++k) EXPECT_EQ(r.push(1000 * k), kDiagNoValue);
+  const auto s = RiseRate<4>::scale_for(0);
+  EXPECT_EQ(RiseRate<4>::scaled_rate(0, s), 0);
+  EXPECT_EQ(RiseRate<4>::scaled_rate(1, s), kDiagMaxRate);
+  EXPECT_EQ(RiseRate<4>::scaled_rate(-1, s), -kDiagMaxRate);
 }
 
 TEST(RiseRate, MeasuresMilliKelvinPerMinuteOverTheWindow) {
