@@ -4,7 +4,7 @@
 // episodes on the fault-free run; the model comes through the whole toolchain
 // (detection_harness.hpp). Prints figures; asserts nothing.
 //   detection_bench [--board avr|native] [--elf PATH] [--out DIR] [--quick] [--hours H]
-//                   [--moments N] [--window-h H] [--seed S]
+//                   [--moments N] [--window-h H] [--seed S] [--jobs N]
 #include "tests/bench/detection/detection_harness.hpp"
 
 #include <fmt/core.h>
@@ -36,6 +36,7 @@ int main(int argc, char** argv) {
     else if (a == "--moments") o.moments_per_kind = std::stoi(value("moments per kind"));
     else if (a == "--window-h") o.window_h = std::stod(value("hours"));
     else if (a == "--seed") o.profile.seed = static_cast<uint32_t>(std::stoul(value("seed")));
+    else if (a == "--jobs") o.jobs = std::stoi(value("fault runs at a time"));
     else {
       std::cerr << "unknown argument " << a << "\n";
       return 2;
@@ -53,6 +54,7 @@ int main(int argc, char** argv) {
     std::printf("-- per fault and place\n%s", r.summary_table().c_str());
     std::printf("-- %s\n", r.fault_free_line().c_str());
     std::printf("-- targets: 30 W -> ALARM <= 10 min, 10 W -> <= 30 min, fault-free: zero WARN and ALARM\n");
+    std::printf("-- cost: %.0f s wall, %.0f s CPU (%d fault runs at a time)\n", r.wall_s, r.cpu_s, o.jobs);
   } catch (const std::exception& e) {
     std::fprintf(stderr, "detection benchmark failed: %s\n", e.what());
     return 1;

@@ -19,6 +19,7 @@
 #include <map>
 #include <set>
 #include <stdexcept>
+#include <sys/resource.h>
 #include <sys/wait.h>
 #include <unistd.h>
 
@@ -72,10 +73,15 @@ ChildReport watch_fault(link::Session& session, sim::SimModule& module, sim::Fau
   return r;
 }
 
-// Runs `fn` in a forked copy of this process (the whole simulated module included) and returns
-// its report; the parent's own simulation is untouched.
+// A fault run in a forked copy of this process (the whole simulated module included): the
+// parent's own simulation is untouched, so every child starts from the state of the moment.
+struct Child {
+  pid_t pid = -1;
+  int fd = -1;  // read end of the pipe that carries the ChildReport
+};
+
 template <class Fn>
-ChildReport in_child(Fn fn) {
+Child spawn_child(Fn fn) {
   std::fflush(nullptr);
   std::cout.flush();
   std::cerr.flush();
@@ -92,25 +98,56 @@ ChildReport in_child(Fn fn) {
       rep.ok = 0;
       std::snprintf(rep.error, sizeof rep.error, "%s", e.what());
     }
+    // One write below PIPE_BUF: it completes without a reader, so the child can exit before the
+    // parent gets to it.
+    static_assert(sizeof(ChildReport) <= 512, "a report must fit the pipe in one atomic write");
     const ssize_t w = ::write(fds[1], &rep, sizeof rep);
     ::_exit(w == ssize_t(sizeof rep) ? 0 : 1);
   }
   ::close(fds[1]);
+  return Child{pid, fds[0]};
+}
+
+// The report of a child that has exited with `status`.
+ChildReport collect_child(const Child& c, int status) {
   ChildReport rep;
   size_t got = 0;
   while (got < sizeof rep) {
-    const ssize_t n = ::read(fds[0], reinterpret_cast<char*>(&rep) + got, sizeof rep - got);
+    const ssize_t n = ::read(c.fd, reinterpret_cast<char*>(&rep) + got, sizeof rep - got);
     if (n <= 0) break;
     got += size_t(n);
   }
-  ::close(fds[0]);
-  int status = 0;
-  ::waitpid(pid, &status, 0);
+  ::close(c.fd);
   if (got != sizeof rep) {
     rep = ChildReport();
     std::snprintf(rep.error, sizeof rep.error, "the fault run ended without a report (status %d)", status);
   }
   return rep;
+}
+
+// Runs run(i) for i in [0, n) in forked children, at most `jobs` at a time, and returns their
+// reports in order of i. The children are independent copies of one state, so the reports do not
+// depend on `jobs`; only the wall time does.
+template <class Run>
+std::vector<ChildReport> run_children(size_t n, int jobs, Run run) {
+  std::vector<ChildReport> reports(n);
+  std::vector<std::pair<size_t, Child>> running;
+  size_t next = 0;
+  while (next < n || !running.empty()) {
+    while (next < n && running.size() < size_t(std::max(1, jobs))) {
+      const size_t i = next++;
+      running.emplace_back(i, spawn_child([&run, i] { return run(i); }));
+    }
+    int status = 0;
+    const pid_t done = ::waitpid(-1, &status, 0);
+    if (done < 0) throw std::runtime_error("waitpid() failed while fault runs were running");
+    const auto it = std::find_if(running.begin(), running.end(),
+                                 [done](const std::pair<size_t, Child>& r) { return r.second.pid == done; });
+    if (it == running.end()) continue;  // not one of ours
+    reports[it->first] = collect_child(it->second, status);
+    running.erase(it);
+  }
+  return reports;
 }
 
 std::string minutes(double s, double window_s) {
@@ -185,42 +222,51 @@ DetectionResult run_detection(const DetectionOptions& o) {
       // The fault runs of the moments that have come.
       while (next_moment < moments.size() && t - t_prod >= moments[next_moment].t_s) {
         const ProfileMoment& m = moments[next_moment++];
-        auto run_one = [&](const std::string& name, const std::string& place, const sim::FaultSpec& f,
-                           double window_s, bool stop_at_alarm) {
-          FaultRun fr;
-          fr.fault = name;
-          fr.place = place;
-          fr.moment = m;
-          fr.state_before = worst_thermal(last);
-          fr.window_s = window_s;
-          const ChildReport rep = in_child([&] { return watch_fault(session, module, f, window_s, stop_at_alarm); });
-          fr.ok = rep.ok != 0;
-          fr.error = rep.error;
-          fr.warn_s = rep.warn_s, fr.alarm_s = rep.alarm_s, fr.sensor_s = rep.sensor_s;
-          fr.warn_channel = rep.warn_channel, fr.alarm_channel = rep.alarm_channel;
-          fr.sensor_channel = rep.sensor_channel;
-          say(fmt::format("{:>13} {:<5} at {:5.2f} h ({}, {:.0f} rpm): WARN {} min, ALARM {} min (ch{}){}", name, place,
-                          m.t_s / 3600, moment_kind_name(m.kind), m.rpm, minutes(fr.warn_s, window_s),
-                          minutes(fr.alarm_s, window_s), fr.alarm_channel,
-                          fr.sensor_s >= 0 ? fmt::format(", SENSOR_FAULT {:.2f} min (ch{})", fr.sensor_s / 60, fr.sensor_channel)
-                                           : std::string()) +
-              (fr.ok ? "" : " -- run failed: " + fr.error));
-          res.faults.push_back(fr);
+        struct FaultJob {
+          std::string name, place;
+          sim::FaultSpec spec;
+          double window_s;
+          bool stop_at_alarm;
         };
+        std::vector<FaultJob> jobs;
         for (double w : o.heats_w)
           for (sim::BearingPlace place : o.places) {
             sim::FaultSpec f;
             f.kind = sim::FaultKind::BearingHeat;
             f.heat_w = w;
             f.place = place;
-            run_one(fmt::format("bearing {:.0f} W", w), place == sim::BearingPlace::Front ? "front" : "rear", f,
-                    o.window_h * 3600, true);
+            jobs.push_back({fmt::format("bearing {:.0f} W", w), place == sim::BearingPlace::Front ? "front" : "rear", f,
+                            o.window_h * 3600, true});
           }
         for (int ch : o.open_probe_channels) {
           sim::FaultSpec f;
           f.kind = sim::FaultKind::OpenProbe;
           f.channel = ch;
-          run_one("open probe", fmt::format("ch{}", ch), f, o.sensor_window_h * 3600, false);
+          jobs.push_back({"open probe", fmt::format("ch{}", ch), f, o.sensor_window_h * 3600, false});
+        }
+        const std::vector<ChildReport> reps = run_children(jobs.size(), o.jobs, [&](size_t i) {
+          return watch_fault(session, module, jobs[i].spec, jobs[i].window_s, jobs[i].stop_at_alarm);
+        });
+        for (size_t i = 0; i < jobs.size(); ++i) {
+          const ChildReport& rep = reps[i];
+          FaultRun fr;
+          fr.fault = jobs[i].name;
+          fr.place = jobs[i].place;
+          fr.moment = m;
+          fr.state_before = worst_thermal(last);
+          fr.window_s = jobs[i].window_s;
+          fr.ok = rep.ok != 0;
+          fr.error = rep.error;
+          fr.warn_s = rep.warn_s, fr.alarm_s = rep.alarm_s, fr.sensor_s = rep.sensor_s;
+          fr.warn_channel = rep.warn_channel, fr.alarm_channel = rep.alarm_channel;
+          fr.sensor_channel = rep.sensor_channel;
+          say(fmt::format("{:>13} {:<5} at {:5.2f} h ({}, {:.0f} rpm): WARN {} min, ALARM {} min (ch{}){}", fr.fault,
+                          fr.place, m.t_s / 3600, moment_kind_name(m.kind), m.rpm, minutes(fr.warn_s, fr.window_s),
+                          minutes(fr.alarm_s, fr.window_s), fr.alarm_channel,
+                          fr.sensor_s >= 0 ? fmt::format(", SENSOR_FAULT {:.2f} min (ch{})", fr.sensor_s / 60, fr.sensor_channel)
+                                           : std::string()) +
+              (fr.ok ? "" : " -- run failed: " + fr.error));
+          res.faults.push_back(fr);
         }
       }
       // Fault-free accounting.
@@ -260,6 +306,11 @@ DetectionResult run_detection(const DetectionOptions& o) {
 
   // --- 3. Results ----------------------------------------------------------------------------------
   res.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - wall0).count();
+  for (int who : {RUSAGE_SELF, RUSAGE_CHILDREN}) {
+    struct rusage ru {};
+    if (::getrusage(who, &ru) == 0)
+      res.cpu_s += double(ru.ru_utime.tv_sec + ru.ru_stime.tv_sec) + 1e-6 * double(ru.ru_utime.tv_usec + ru.ru_stime.tv_usec);
+  }
   std::ofstream csv(fs::path(o.out_dir) / "detection.csv");
   csv << "# btsm detection benchmark, board " << res.board << "; profile: " << res.profile << "\n"
       << "fault,place,moment,moment_h,rpm,state_before,window_min,warn_min,warn_ch,alarm_min,alarm_ch,sensor_fault_min,"

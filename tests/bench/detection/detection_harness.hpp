@@ -10,7 +10,7 @@
 //   2. The machine stands still for `soak_h` (cold), then runs a varied production profile
 //      (production_profile.hpp) fault-free: false WARN and ALARM episodes are counted (an ALARM is
 //      acknowledged by the host right away, as an operator would, so a later one counts again).
-//   3. At each chosen moment of that run the process forks once per fault: the child continues the
+//   3. At each chosen moment of that run the process forks once per fault (`jobs` at a time): the child continues the
 //      identical simulated history with the fault injected (extra heat at a bearing, or an open
 //      probe) and reports when the module first showed WARN, ALARM or SENSOR_FAULT, on which
 //      channel; the parent goes on fault-free. So every fault starts from exactly the state the
@@ -44,6 +44,8 @@ struct DetectionOptions {
   int moments_per_kind = 2;
   double window_h = 3;                        // h watched after a bearing fault (no ALARM: "> window")
   double sensor_window_h = 0.5;               // h watched after a sensor fault
+  int jobs = 1;                               // fault runs (forked children) at a time; the results
+                                              // do not depend on it, only the wall time does
   std::function<void(const std::string&)> progress;
 };
 
@@ -81,6 +83,7 @@ struct DetectionResult {
   std::vector<FaultRun> faults;
   FaultFreeRun fault_free;
   double wall_s = 0;
+  double cpu_s = 0;                  // user + system, this process and its fault runs
   // Every fault run, one line each.
   std::string runs_table() const;
   // Per fault and place: WARN/ALARM time (median, range), detected n/N, channels.
