@@ -22,25 +22,21 @@ class HmacSha256 {
   HmacSha256(const uint8_t* key, size_t key_len) { init(key, key_len); }
 
   // Starts a MAC with the given key (any length; keys over 64 bytes are hashed first).
+  // K0 (the key padded with zeros) ^ opad and ^ ipad go into the hash a byte at a time, not
+  // through a 64-byte padded copy: this runs inside MODEL_BEGIN, the firmware's deepest stack.
   void init(const uint8_t* key, size_t key_len) {
-    uint8_t pad[kSha256BlockSize];
-    // K0: key padded with zeros, or SHA-256(key) padded when the key exceeds one block.
-    for (uint8_t i = 0; i < kSha256BlockSize; ++i) pad[i] = 0;
     if (key_len > kSha256BlockSize) {
-      sha256(key, key_len, pad);
-    } else {
-      for (size_t i = 0; i < key_len; ++i) pad[i] = key[i];
+      uint8_t hashed[kSha256DigestSize];
+      sha256(key, key_len, hashed);
+      init(hashed, kSha256DigestSize);
+      secure_zero(hashed, sizeof(hashed));
+      return;
     }
     // Outer hash: absorb K0 ^ opad, keep only its chaining value.
-    for (uint8_t i = 0; i < kSha256BlockSize; ++i) pad[i] ^= 0x5c;
-    inner_.init();
-    inner_.update(pad, kSha256BlockSize);
+    absorb_key_block(key, key_len, 0x5c);
     for (uint8_t i = 0; i < 8; ++i) outer_chain_[i] = inner_.chaining()[i];
-    // Inner hash: K0 ^ ipad (0x5c ^ 0x36 turns opad into ipad).
-    for (uint8_t i = 0; i < kSha256BlockSize; ++i) pad[i] ^= 0x5c ^ 0x36;
-    inner_.init();
-    inner_.update(pad, kSha256BlockSize);
-    secure_zero(pad, sizeof(pad));
+    // Inner hash: K0 ^ ipad.
+    absorb_key_block(key, key_len, 0x36);
   }
 
   void update(const uint8_t* data, size_t n) { inner_.update(data, n); }
@@ -57,6 +53,13 @@ class HmacSha256 {
   }
 
  private:
+  // A fresh hash over one block of (K0 ^ pad); key_len <= 64.
+  void absorb_key_block(const uint8_t* key, size_t key_len, uint8_t pad) {
+    inner_.init();
+    for (uint8_t i = 0; i < kSha256BlockSize; ++i)
+      inner_.update_byte(static_cast<uint8_t>((i < key_len ? key[i] : 0) ^ pad));
+  }
+
   Sha256 inner_;
   uint32_t outer_chain_[8];
 };

@@ -77,14 +77,16 @@ class Sha256 {
   const uint32_t* chaining() const { return h_; }
 
   void update(const uint8_t* data, size_t n) {
-    for (size_t i = 0; i < n; ++i) {
-      block_[used_++] = data[i];
-      if (used_ == kSha256BlockSize) {
-        compress();
-        used_ = 0;
-      }
+    for (size_t i = 0; i < n; ++i) update_byte(data[i]);
+  }
+
+  void update_byte(uint8_t b) {
+    block_[used_++] = b;
+    if (used_ == kSha256BlockSize) {
+      compress();
+      used_ = 0;
     }
-    total_ += static_cast<uint32_t>(n);
+    ++total_;
   }
 
   // Writes the 32-byte digest and wipes the context (call init() to reuse it).
