@@ -71,12 +71,13 @@
 #include <string.h>
 
 #include "byte_order.hpp"
+#include "channels.hpp"
 #include "crc.hpp"
 #include "fixed_point.hpp"
 
 namespace btsm {
 
-const uint8_t kModelChannels = 5;
+const uint8_t kModelChannels = kChannels;  // one column per module channel (common/channels.hpp)
 const uint8_t kModelMaxBreakpoints = 8;
 const uint8_t kModelMinBreakpoints = 2;  // natural cooling + at least one running speed
 const uint32_t kReducedModelMagic = 0x4D525442UL;  // "BTRM" in byte order

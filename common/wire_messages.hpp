@@ -17,6 +17,7 @@
 #include <stdint.h>
 
 #include "byte_order.hpp"
+#include "channels.hpp"
 #include "wire_frame.hpp"
 
 namespace btsm {
@@ -130,7 +131,7 @@ inline const char* nack_description(uint8_t code) {
 
 // ---------------------------------------------------------------------------------------------
 // Common constants.
-const uint8_t kChannels = 5;
+using ::btsm::kChannels;  // common/channels.hpp
 const int32_t kMissing = -8388608L;  // i24 temperature placeholder: fault, disabled or no model
 const uint16_t kSpeedFromTach = 0xFFFF;  // SET_SPEED value: measure speed with the tach input
 const uint16_t kMaxSpeedRpm = 60000;     // highest explicit SET_SPEED value

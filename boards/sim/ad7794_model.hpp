@@ -8,7 +8,7 @@
 // `advance(seconds)`; `time_to_next_event()` says when the next conversion or calibration ends so
 // a simulation can jump there (faster than real time).
 //
-// What is modelled (datasheet facts in docs embedded-facts.md section 1):
+// What is modelled (facts from the AD7794/AD7795 datasheet, Rev. D):
 //  - all 8 registers with AD7794 widths (AD7795 option: 16-bit data, status bit 3 = 0), POR values
 //  - communications state machine, WEN bit, read/write, continuous read (CREAD 0x5C / exit 0x58),
 //    reset on 32 consecutive ones on DIN; serial accesses within 500 us of a reset are ignored
@@ -25,6 +25,9 @@
 //    chip (MISO stuck high, no RDY), silent reset (e.g. supply glitch: registers back to POR)
 #ifndef BTSM_BOARDS_SIM_AD7794_MODEL_HPP
 #define BTSM_BOARDS_SIM_AD7794_MODEL_HPP
+
+#include "common/channels.hpp"
+#include "firmware/ad7794_regs.hpp"
 
 #include <array>
 #include <cstdint>
@@ -43,7 +46,7 @@ enum class ProbeFault : uint8_t {
 // The analog world around the chip. The plant writes these at any time; a conversion uses the
 // values current at its completion time.
 struct AnalogFrontEnd {
-  static constexpr int kProbes = 5;  // AIN1..AIN5; AIN6 is not connected (floating)
+  static constexpr int kProbes = kChannels;  // one probe per module channel on AIN1..AIN5; AIN6 floats
   std::array<double, kProbes> probe_ohm{1000.0, 1000.0, 1000.0, 1000.0, 1000.0};  // ohm
   std::array<ProbeFault, kProbes> probe_fault{};
   double r_ref_ohm = 6800.0;       // ohm, reference resistor across REFIN1(+)/REFIN1(-)
@@ -154,8 +157,8 @@ class Ad7794Model {
   bool err_ = false;
   bool noxref_ = false;
   uint8_t last_channel_ = 0;
-  std::array<uint32_t, 5> offset_{};
-  std::array<uint32_t, 5> full_scale_{};
+  std::array<uint32_t, ad7794::kCalPairs> offset_{};
+  std::array<uint32_t, ad7794::kCalPairs> full_scale_{};
 
   // Serial interface.
   Phase phase_ = Phase::kComm;

@@ -222,7 +222,8 @@ void run_reduce(const ReduceArgs& a) {
     int ch = 0;
     o.ambient_channel = -1;
     while (std::getline(ss, tok, ',')) {
-      if (ch >= 5) throw CommandError(kExitUsage, "--channels: at most 5 entries");
+      if (ch >= kModelChannels)
+        throw CommandError(kExitUsage, "--channels: at most " + std::to_string(kModelChannels) + " entries");
       int node = -1;
       if (tok == "ambient") {
         if (o.ambient_channel >= 0) throw CommandError(kExitUsage, "--channels: only one ambient channel");
@@ -241,7 +242,7 @@ void run_reduce(const ReduceArgs& a) {
       }
       o.channel_node[static_cast<std::size_t>(ch++)] = node;
     }
-    for (; ch < 5; ++ch) o.channel_node[static_cast<std::size_t>(ch)] = -1;
+    for (; ch < kModelChannels; ++ch) o.channel_node[static_cast<std::size_t>(ch)] = -1;
   }
   o.dt_s = a.dt;
   o.warn_K = a.warn;

@@ -5,6 +5,8 @@
 #include "host/demo/demo_plan.hpp"
 #include "host/report/html_report.hpp"
 
+#include "common/reduced_model.hpp"
+
 #include <cstdint>
 #include <functional>
 #include <string>
@@ -31,7 +33,7 @@ struct AnalysisOutputs {
   std::vector<std::string> effect_nodes;
   double check_rmse_before_K = 0, check_rmse_after_K = 0;
   double quantized_vs_full_max_K = 0;   // measured deviation of the flashed model
-  double alarm_band_K[5] = {};          // per channel, calibrated on the recordings (0 = not diagnosed)
+  double alarm_band_K[kModelChannels] = {};  // per channel, calibrated on the recordings (0 = not diagnosed)
   std::vector<std::string> failures;    // checks that did not hold
 };
 

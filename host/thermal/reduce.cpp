@@ -121,9 +121,9 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
       throw std::invalid_argument("reduce: speed " + std::to_string(s) + " must be a whole rpm above the operating threshold and <= 65535");
     if (i > 0 && !(s > o.speeds_rpm[i - 1])) throw std::invalid_argument("reduce: speeds must be strictly ascending");
   }
-  if (o.reference_channel < 0 || o.reference_channel >= 5 || o.channel_node[static_cast<std::size_t>(o.reference_channel)] < 0)
+  if (o.reference_channel < 0 || o.reference_channel >= kModelChannels || o.channel_node[static_cast<std::size_t>(o.reference_channel)] < 0)
     throw std::invalid_argument("reduce: the reference channel must map to a node");
-  for (int ch = 0; ch < 5; ++ch) {
+  for (int ch = 0; ch < kModelChannels; ++ch) {
     const int nd = o.channel_node[static_cast<std::size_t>(ch)];
     if (nd >= net.node_count()) throw std::invalid_argument("reduce: channel " + std::to_string(ch + 1) + " maps to a missing node");
     if (nd >= 0 && ch == o.ambient_channel) throw std::invalid_argument("reduce: the ambient channel cannot also map to a node");
@@ -134,9 +134,9 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
   fm.n_breakpoints = static_cast<uint8_t>(o.speeds_rpm.size() + 1);
   fm.ambient_channel = o.ambient_channel < 0 ? kModelAmbientNone : static_cast<uint8_t>(o.ambient_channel);
   fm.enabled_mask = 0;
-  for (int ch = 0; ch < 5; ++ch)
+  for (int ch = 0; ch < kModelChannels; ++ch)
     if (o.channel_node[static_cast<std::size_t>(ch)] >= 0 || ch == o.ambient_channel) fm.enabled_mask |= static_cast<uint8_t>(1u << ch);
-  for (int ch = 0; ch < 5; ++ch) {
+  for (int ch = 0; ch < kModelChannels; ++ch) {
     fm.warn_band_k[ch] = o.warn_K;
     fm.alarm_band_k[ch] = o.alarm_K;
     fm.abs_limit_c[ch] = o.abs_limit_c;
@@ -156,7 +156,7 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     fm.a[bp] = a;
     fm.b[bp] = scale * bc * (a - 1.0) / r.dc.pole;
     const Eigen::VectorXd d = r.dc.d * r.source_w;
-    for (int ch = 0; ch < 5; ++ch) {
+    for (int ch = 0; ch < kModelChannels; ++ch) {
       const int nd = o.channel_node[static_cast<std::size_t>(ch)];
       fm.c[bp][ch] = nd >= 0 ? r.dc.c[nd] / scale : 0.0;
       fm.d[bp][ch] = nd >= 0 ? d[nd] : 0.0;
@@ -181,7 +181,7 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     // follow the ~1000 s equalisation after it, which the deviation figures show). The pole is the
     // DC-matched one of the free response (it preserves the integral of the decay).
     (void)scale;
-    for (int ch = 0; ch < 5; ++ch) {
+    for (int ch = 0; ch < kModelChannels; ++ch) {
       const int nd = o.channel_node[static_cast<std::size_t>(ch)];
       fm.c[0][ch] = nd >= 0 ? x_stop[nd] / x_stop[ref_node] : 0.0;
       fm.d[0][ch] = 0.0;
@@ -217,12 +217,12 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     for (const auto& seg : profile) {
       const long steps = std::lround(seg.second / dt);
       for (long k = 0; k < steps; ++k) {
-        double pd[5];
-        int32_t pq[5];
+        double pd[kModelChannels];
+        int32_t pq[kModelChannels];
         step(fm, sd, seg.first, o.test_ambient_c, pd);
         if (quantized_ok) step(out.quantized, sq, static_cast<uint16_t>(seg.first), amb_mk, pq);
         const Eigen::VectorXd& xf = full.node_temp_c();
-        for (int ch = 0; ch < 5; ++ch) {
+        for (int ch = 0; ch < kModelChannels; ++ch) {
           const int nd = o.channel_node[static_cast<std::size_t>(ch)];
           if (nd < 0) continue;
           out.deviation.double_vs_full_max_K = std::max(out.deviation.double_vs_full_max_K, std::abs(pd[ch] - xf[nd]));
@@ -289,7 +289,7 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
   sm["ambient_channel"] = o.ambient_channel < 0 ? nlohmann::json(nullptr) : nlohmann::json(o.ambient_channel + 1);
   sm["enabled_mask"] = m.enabled_mask;
   nlohmann::json chmap = nlohmann::json::array();
-  for (int ch = 0; ch < 5; ++ch) {
+  for (int ch = 0; ch < kModelChannels; ++ch) {
     const int nd = o.channel_node[static_cast<std::size_t>(ch)];
     chmap.push_back(nd >= 0 ? nlohmann::json(net.nodes[static_cast<std::size_t>(nd)].name)
                             : (ch == o.ambient_channel ? nlohmann::json("ambient") : nlohmann::json(nullptr)));
@@ -298,8 +298,8 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
   sm["breakpoints"] = nlohmann::json::array();
   for (int i = 0; i < m.n_breakpoints; ++i) {
     nlohmann::json b{{"speed_rpm", m.speed_rpm[i]}, {"a", m.a[i]}, {"b", m.b[i]}};
-    b["c"] = std::vector<double>(m.c[i], m.c[i] + 5);
-    b["d"] = std::vector<double>(m.d[i], m.d[i] + 5);
+    b["c"] = std::vector<double>(m.c[i], m.c[i] + kModelChannels);
+    b["d"] = std::vector<double>(m.d[i], m.d[i] + kModelChannels);
     sm["breakpoints"].push_back(b);
   }
   j["scheduled_model"] = sm;

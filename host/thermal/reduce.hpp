@@ -50,7 +50,7 @@ SpeedReduction reduce_with_inputs(const Network& net, const Eigen::VectorXd& par
 struct ReduceOptions {
   std::vector<double> speeds_rpm;                 // operating breakpoints (ascending, > 0)
   double dt_s = 5.0;                              // firmware sample period
-  std::array<int, 5> channel_node{{0, 1, 2, -1, -1}};  // node per firmware channel (-1 = none)
+  std::array<int, kModelChannels> channel_node{{0, 1, 2, -1, -1}};  // node per firmware channel (-1 = none)
   int ambient_channel = 3;                        // 0-based; -1 = none
   int reference_channel = 0;                      // channel whose c is 1 at every breakpoint
   double cooling_reference_rpm = 0;               // stop state used for the cooling reduction (0 = highest speed)

@@ -67,7 +67,7 @@ EffectDynamics::EffectDynamics(const HiddenEffects& fx, const thermal::Network& 
     latent_.push_back({i, m.c_j_per_k, m.g_w_per_k, m.g_ambient_w_per_k, t0});
   }
   // Probe points at t = 0 (lagging probes start settled).
-  const int point_node[5] = {probes.rear_bearing, probes.housing, probes.front_bearing, -1, probes.shaft};
+  const int point_node[kChannels] = {probes.rear_bearing, probes.housing, probes.front_bearing, -1, probes.shaft};
   for (const auto& l : fx.sensor_lag) {
     lag_tau_s_[l.channel - 1] = l.tau_s;
     const int n = point_node[l.channel - 1];
@@ -110,7 +110,7 @@ void EffectDynamics::add_heat(double t_s, double rpm, const Eigen::VectorXd& sou
   for (const auto& m : latent_) extra_w[m.node] += m.g * (m.temp_c - x_c[m.node]);
 }
 
-void EffectDynamics::advance(double h_s, const Eigen::VectorXd& x_c, double measured_ambient_c, const double point_c[5]) {
+void EffectDynamics::advance(double h_s, const Eigen::VectorXd& x_c, double measured_ambient_c, const double point_c[kChannels]) {
   for (auto& tr : transients_) tr.state *= std::exp(-h_s / tr.tau_s);
   for (auto& m : latent_) {
     // Exact over the step with the node and the air held.
@@ -122,7 +122,7 @@ void EffectDynamics::advance(double h_s, const Eigen::VectorXd& x_c, double meas
     air_c_ = measured_ambient_c + (air_c_ - measured_ambient_c) * std::exp(-h_s / fx_.ambient_lag_tau_s);
   else
     air_c_ = measured_ambient_c;
-  for (int i = 0; i < 5; ++i)
+  for (int i = 0; i < kChannels; ++i)
     if (lag_tau_s_[i] > 0.0) lag_c_[i] = point_c[i] + (lag_c_[i] - point_c[i]) * std::exp(-h_s / lag_tau_s_[i]);
 }
 

@@ -12,6 +12,8 @@
 #include "host/sim/plant/hidden_effects.hpp"
 #include "host/thermal/network.hpp"
 
+#include "common/channels.hpp"
+
 #include <Eigen/Core>
 
 #include <string>
@@ -41,7 +43,7 @@ class EffectDynamics {
   // After the network advanced h seconds: advance the effects' own states. `measured_ambient_c`
   // and `point_c` (true temperature at the point of each channel 1..5, index 0..4) are at the end
   // of the step.
-  void advance(double h_s, const Eigen::VectorXd& x_c, double measured_ambient_c, const double point_c[5]);
+  void advance(double h_s, const Eigen::VectorXd& x_c, double measured_ambient_c, const double point_c[kChannels]);
   // What the probe of channel ch (1..5) reads when its point is at `point_c`, at time t.
   double probe_reading_c(int ch, double point_c, double t_s) const;
 
@@ -70,9 +72,9 @@ class EffectDynamics {
   std::vector<int> boundary_node_;
   std::vector<std::vector<int>> event_nodes_;
   std::vector<Latent> latent_;
-  double lag_tau_s_[5] = {0, 0, 0, 0, 0};   // s per channel, 0 = no lag
-  double lag_c_[5] = {0, 0, 0, 0, 0};       // lagging probe readings, degC
-  double drift_k_per_h_[5] = {0, 0, 0, 0, 0};
+  double lag_tau_s_[kChannels] = {};       // s per channel, 0 = no lag
+  double lag_c_[kChannels] = {};           // lagging probe readings, degC
+  double drift_k_per_h_[kChannels] = {};
   double air_c_ = 20.0;
   double last_rpm_ = 0.0;
 };

@@ -22,6 +22,7 @@
 //
 // Time advances in fixed ZOH steps of `step_s` (inputs held constant within a step; segment
 // boundaries are honoured at step resolution). Not thread-safe: the runner serialises access.
+#include "common/channels.hpp"
 #include "host/sim/plant/effect_dynamics.hpp"
 #include "host/sim/plant/faults.hpp"
 #include "host/sim/plant/profile.hpp"
@@ -35,8 +36,6 @@
 #include <vector>
 
 namespace btsm::sim {
-
-constexpr int kChannels = 5;
 
 enum class Ch5Mode { HousingSurface, ShaftEnd, Disabled };
 
