@@ -1,7 +1,7 @@
 #!/usr/bin/env bash
 # Compiles EACH common/*.hpp alone (a one-line .cpp that includes it), globbed now so new headers
 # are covered automatically:
-#   avr-g++ -std=gnu++14 -mmcu=atmega328p -fsyntax-only -I<root>/common -I<root>
+#   avr-g++ -std=gnu++14 -mmcu=atmega328p -Wall -Wextra -Werror -fsyntax-only -I<root>/common -I<root>
 #   g++ -std=c++14 -Wall -Wextra -Werror -fsyntax-only  (and again with -std=c++20)
 # Usage: check_headers.sh <project root> <host g++> [avr-g++]
 # Exit 0 = all compile, 1 = some failed (each failure printed with the compiler output),
@@ -32,7 +32,7 @@ for h in "${headers[@]}"; do
   src="$work/${name%.hpp}_alone.cpp"
   printf '#include "%s"\n' "$name" > "$src"
   for cmd in \
-      "$avr -std=gnu++14 -mmcu=atmega328p -fsyntax-only -I$root/common -I$root $src" \
+      "$avr -std=gnu++14 -mmcu=atmega328p -Wall -Wextra -Werror -fsyntax-only -I$root/common -I$root $src" \
       "$gxx -std=c++14 -Wall -Wextra -Werror -fsyntax-only -I$root/common -I$root $src" \
       "$gxx -std=c++20 -Wall -Wextra -Werror -fsyntax-only -I$root/common -I$root $src"; do
     if ! out=$($cmd 2>&1); then
@@ -42,7 +42,7 @@ for h in "${headers[@]}"; do
       this_failed=1
     fi
   done
-  [ $this_failed -eq 0 ] && echo "ok: common/$name (avr-g++ gnu++14, g++ c++14, g++ c++20)"
+  [ $this_failed -eq 0 ] && echo "ok: common/$name (avr-g++ gnu++14, g++ c++14, g++ c++20, warnings as errors)"
 done
 echo "${#headers[@]} headers checked with $("$avr" --version | head -1) and $("$gxx" --version | head -1)"
 exit $failed
