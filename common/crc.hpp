@@ -14,6 +14,8 @@
 #include <stddef.h>
 #include <stdint.h>
 
+#include "platform.hpp"
+
 namespace btsm {
 
 // Byte-at-a-time form of the bitwise polynomial division (poly 0x1021 = x^16 + x^12 + x^5 + 1):
@@ -24,14 +26,9 @@ namespace btsm {
 //   high' = low ^ (x << 4) ^ (x >> 3),  low' = (x << 5) ^ x.
 // Same result as the bit loop (checked exhaustively), no table, ~15 AVR cycles per byte instead
 // of ~100 (the firmware checks every frame it sends and receives).
-#if defined(__GNUC__)
-#define BTSM_CRC_INLINE inline __attribute__((always_inline))
-#else
-#define BTSM_CRC_INLINE inline
-#endif
 // Forced inline: a dozen instructions, called once per byte from two loops (crc16_ccitt and the
 // frame encoder); as a call on AVR the argument shuffling costs as much as the work.
-BTSM_CRC_INLINE uint16_t crc16_ccitt_byte(uint16_t crc, uint8_t b) {
+BTSM_ALWAYS_INLINE uint16_t crc16_ccitt_byte(uint16_t crc, uint8_t b) {
   uint8_t x = static_cast<uint8_t>((crc >> 8) ^ b);
   x = static_cast<uint8_t>(x ^ (x >> 4));
   const uint8_t hi = static_cast<uint8_t>(static_cast<uint8_t>(crc) ^ static_cast<uint8_t>(x << 4) ^ (x >> 3));

@@ -27,6 +27,8 @@
 
 #include <stdint.h>
 
+#include "platform.hpp"
+
 namespace btsm {
 namespace fx {
 
@@ -412,7 +414,7 @@ inline uint32_t mul_hi_round(uint32_t u, uint32_t f) {
       : "r0");
   (void)lo;
   return hi;
-#elif defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+#elif BTSM_LITTLE_ENDIAN
   union {
     uint64_t v;
     uint32_t w[2];  // w[0] low, w[1] high

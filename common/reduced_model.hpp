@@ -74,6 +74,7 @@
 #include "channels.hpp"
 #include "crc.hpp"
 #include "fixed_point.hpp"
+#include "platform.hpp"
 
 namespace btsm {
 
@@ -552,18 +553,12 @@ inline int64_t round_shift(int64_t v, int s) {
   return (v + (fx::pow2(s - 1) - (v < 0 ? 1 : 0))) >> s;
 }
 
-#if defined(__GNUC__)
-#define BTSM_RM_INLINE inline __attribute__((always_inline))
-#else
-#define BTSM_RM_INLINE inline
-#endif
-
 // The 48-bit product d * f as its upper 32 bits (d * f) >> 16 and its low 16 bits. On the AVR
 // eight hardware 8 x 8 multiplications in place (~45 cycles): avr-gcc 5.4 compiles the portable
 // form into two __umulhisi3 calls whose 32-bit operands and results it spills to the stack
 // (~330 cycles per interpolated coefficient). The host never compiles the assembly:
 // tests/simavr/sim/avr_numeric_test.cpp runs it on the simulated ATmega328P against exact results.
-BTSM_RM_INLINE void mul_u32_u16(uint32_t d, uint16_t f, uint32_t& high, uint16_t& low) {
+BTSM_ALWAYS_INLINE void mul_u32_u16(uint32_t d, uint16_t f, uint32_t& high, uint16_t& low) {
 #if defined(__AVR__)
   uint32_t h;
   uint16_t l;
@@ -620,7 +615,7 @@ BTSM_RM_INLINE void mul_u32_u16(uint32_t d, uint16_t f, uint32_t& high, uint16_t
 // dm - [p1 < p0] 2^32 with dm = (p1 - p0) mod 2^32, so d * f / 2^16 = (dm * f) / 2^16 -
 // [p1 < p0] f 2^16; the result lies between p0 and p1, so computing modulo 2^32 gives it exactly.
 // Forced inline: the firmware calls it from one loop (ModelStore::refresh_coefficients).
-BTSM_RM_INLINE int32_t lerp_q(int32_t p0, int32_t p1, uint16_t f) {
+BTSM_ALWAYS_INLINE int32_t lerp_q(int32_t p0, int32_t p1, uint16_t f) {
   const bool negative = p1 < p0;
   const uint32_t dm = static_cast<uint32_t>(p1) - static_cast<uint32_t>(p0);  // d mod 2^32
   uint32_t high;
@@ -644,8 +639,8 @@ struct Wide {
 // a * b exactly. On a little-endian target the int64 product (libgcc's 32x32->64 __mulsidi3 on
 // AVR) is read as its two words through a union -- no shift at all (GCC documents union type
 // punning; on AVR the returned registers already are the two words).
-BTSM_RM_INLINE Wide mul_wide(int32_t a, int32_t b) {
-#if defined(__BYTE_ORDER__) && __BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__
+BTSM_ALWAYS_INLINE Wide mul_wide(int32_t a, int32_t b) {
+#if BTSM_LITTLE_ENDIAN
   union {
     int64_t v;
     Wide w;
@@ -666,7 +661,7 @@ BTSM_RM_INLINE Wide mul_wide(int32_t a, int32_t b) {
 //   c x = q 2^24 + r (0 <= r < 2^24: q is a byte move of the words), d 2^20 = (d >> 4) 2^24 +
 //   (d mod 16) 2^20; then value = q 2^24 + r with 0 <= r < 2^24 and the sign of the value is the
 //   sign of q, so rounding half away from zero adds 1 when r > 2^23, or r == 2^23 and q >= 0.
-BTSM_RM_INLINE bool theta_q20(Wide p, int32_t d, bool running, int32_t& out) {
+BTSM_ALWAYS_INLINE bool theta_q20(Wide p, int32_t d, bool running, int32_t& out) {
   if (static_cast<uint32_t>(static_cast<uint32_t>(p.hi) + 0x400000UL) >= 0x800000UL) return false;  // hi outside [-2^22, 2^22)
   int32_t q = static_cast<int32_t>((static_cast<uint32_t>(p.hi) << 8) | (p.lo >> 24));
   uint32_t r = p.lo & 0x00FFFFFFUL;
@@ -687,7 +682,7 @@ BTSM_RM_INLINE bool theta_q20(Wide p, int32_t d, bool running, int32_t& out) {
 // agree because dividing numerator and denominator by 8 moves the -[neg] term by less than 1).
 //   t * 125 = a 2^16 + b (0 <= b < 2^16; a from the high half times 125 plus the carry of the
 //   low half), a = 2 h + a0: value / 2^17 = h + (a0 2^16 + b) / 2^17, sign of the value = sign of a.
-BTSM_RM_INLINE int32_t q20_to_mk(int32_t t) {
+BTSM_ALWAYS_INLINE int32_t q20_to_mk(int32_t t) {
   const uint32_t low = static_cast<uint32_t>(static_cast<uint16_t>(t)) * 125U;  // < 2^23
   const int32_t a = static_cast<int32_t>(static_cast<int16_t>(static_cast<uint32_t>(t) >> 16)) * 125 +
                     static_cast<int32_t>(low >> 16);
@@ -699,7 +694,7 @@ BTSM_RM_INLINE int32_t q20_to_mk(int32_t t) {
 // saturate<int32>(round((a x + [running] b 2^26) / 2^30)) for p = a x (|a x| <= 2^62).
 //   value = q 2^32 + r (0 <= r < 2^32) with b 2^26 = (b >> 6) 2^32 + (b mod 64) 2^26; then
 //   result = 4 q + floor((r + 2^29 - [q < 0]) / 2^30), that floor in 0..4 (a carry and two bits).
-BTSM_RM_INLINE int32_t next_state_q20(Wide p, int32_t b, bool running) {
+BTSM_ALWAYS_INLINE int32_t next_state_q20(Wide p, int32_t b, bool running) {
   int32_t q = p.hi;
   uint32_t r = p.lo;
   if (running) {
@@ -721,7 +716,7 @@ BTSM_RM_INLINE int32_t next_state_q20(Wide p, int32_t b, bool running) {
 // The channels step_with does not predict: a disabled channel, every channel while the ambient
 // reading is missing (kModelNoPrediction), and the ambient channel (its "prediction" is its own
 // reading). True for those, with their value in `out`; `bit` is 1 << j.
-BTSM_RM_INLINE bool unmodelled_channel(uint8_t j, uint8_t bit, uint8_t enabled_mask, uint8_t ambient_channel,
+BTSM_ALWAYS_INLINE bool unmodelled_channel(uint8_t j, uint8_t bit, uint8_t enabled_mask, uint8_t ambient_channel,
                                        int32_t ambient_mK, int32_t& out) {
   if ((enabled_mask & bit) == 0 || ambient_mK == kModelNoPrediction) {
     out = kModelNoPrediction;

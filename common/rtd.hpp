@@ -25,10 +25,7 @@
 #include <stdint.h>
 
 #include "fixed_point.hpp"
-
-#if defined(__AVR__)
-#include <avr/pgmspace.h>
-#endif
+#include "platform.hpp"
 
 namespace btsm {
 
@@ -269,11 +266,7 @@ const uint32_t kPt1000FixedMinQ16 = 512UL << 16;      // 512 ohm: -118.31 degC
 const uint32_t kPt1000FixedMaxQ16 = 255909545UL;      // R(850 degC + kRtdInverseMarginC) x 2^16
 
 inline const QuadSegmentFixed* pt1000_fixed_segments() {
-  static const QuadSegmentFixed kTable[kPt1000FixedSegments]
-#if defined(__AVR__)
-      PROGMEM
-#endif
-      = {
+  static const QuadSegmentFixed kTable[kPt1000FixedSegments] BTSM_FLASH = {
       {-31288570L, 511663278UL, 33016U},  // R from 512 ohm
       {-29285762L, 513776168UL, 31717U},  // R from 544 ohm
       {-27274862L, 515805849UL, 30455U},  // R from 576 ohm
@@ -347,13 +340,8 @@ inline Pt1000FixedResult pt1000_temperature_q(uint32_t r_q16) {
   const uint8_t k = static_cast<uint8_t>(static_cast<uint8_t>(v >> 24) >> 2) & 15U;
   const uint32_t u = v << 6;  // x as a 32-bit fraction (the segment bits shift out)
   const QuadSegmentFixed* q = pt1000_fixed_segments() + (16U * b + k);
-#if defined(__AVR__)
-  const int32_t d0 = static_cast<int32_t>(pgm_read_dword(&q->d0));
-  const uint32_t d1 = pgm_read_dword(&q->d1), d2 = static_cast<uint32_t>(pgm_read_word(&q->d2)) << (5 + 2 * b);
-#else
-  const int32_t d0 = q->d0;
-  const uint32_t d1 = q->d1, d2 = static_cast<uint32_t>(q->d2) << (5 + 2 * b);
-#endif
+  const int32_t d0 = flash_read_i32(&q->d0);
+  const uint32_t d1 = flash_read_u32(&q->d1), d2 = static_cast<uint32_t>(flash_read_u16(&q->d2)) << (5 + 2 * b);
   r.status = RtdStatus::kOk;
   r.t = d0 + static_cast<int32_t>((fx::mul_hi_round(u, d1 + fx::mul_hi_round(u, d2)) + 128U) >> 8);
   return r;

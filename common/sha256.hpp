@@ -10,14 +10,7 @@
 #include <stddef.h>
 #include <stdint.h>
 
-#if defined(__AVR__)
-#include <avr/pgmspace.h>
-#define BTSM_FLASH_TABLE PROGMEM
-#define BTSM_FLASH_READ_U32(addr) pgm_read_dword(addr)
-#else
-#define BTSM_FLASH_TABLE
-#define BTSM_FLASH_READ_U32(addr) (*(addr))
-#endif
+#include "platform.hpp"
 
 namespace btsm {
 
@@ -27,7 +20,7 @@ const uint8_t kSha256BlockSize = 64;
 // Round constant i (0..63): first 32 bits of the fractional parts of the cube roots of the first
 // 64 primes.
 inline uint32_t sha256_round_constant(uint8_t i) {
-  static const uint32_t k[64] BTSM_FLASH_TABLE = {
+  static const uint32_t k[64] BTSM_FLASH = {
       0x428a2f98UL, 0x71374491UL, 0xb5c0fbcfUL, 0xe9b5dba5UL, 0x3956c25bUL, 0x59f111f1UL,
       0x923f82a4UL, 0xab1c5ed5UL, 0xd807aa98UL, 0x12835b01UL, 0x243185beUL, 0x550c7dc3UL,
       0x72be5d74UL, 0x80deb1feUL, 0x9bdc06a7UL, 0xc19bf174UL, 0xe49b69c1UL, 0xefbe4786UL,
@@ -39,7 +32,7 @@ inline uint32_t sha256_round_constant(uint8_t i) {
       0x19a4c116UL, 0x1e376c08UL, 0x2748774cUL, 0x34b0bcb5UL, 0x391c0cb3UL, 0x4ed8aa4aUL,
       0x5b9cca4fUL, 0x682e6ff3UL, 0x748f82eeUL, 0x78a5636fUL, 0x84c87814UL, 0x8cc70208UL,
       0x90befffaUL, 0xa4506cebUL, 0xbef9a3f7UL, 0xc67178f2UL};
-  return BTSM_FLASH_READ_U32(&k[i]);
+  return flash_read_u32(&k[i]);
 }
 
 // Overwrites memory in a way the optimiser may not drop (for keys and intermediate hashes).

@@ -20,6 +20,7 @@
 
 #include <stdint.h>
 
+#include "common/platform.hpp"
 #include "common/ratiometric.hpp"
 #include "common/wire_messages.hpp"
 #include "firmware/ad7794.hpp"

@@ -12,6 +12,7 @@
 
 #include <stdint.h>
 
+#include "common/platform.hpp"
 #include "firmware/ad7794_regs.hpp"
 
 namespace btsm {

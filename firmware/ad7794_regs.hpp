@@ -1,13 +1,13 @@
 // AD7794 register map and field encodings: the chip's vocabulary without any bus. Shared by the
 // driver (firmware/ad7794.hpp), the register-level model (boards/sim/ad7794_model.*) and tests.
-// Bit positions: AD7794/AD7795 datasheet Rev. D register tables (summarised in
-// docs embedded-facts.md section 1.1/1.2); derived command bytes are checked in the unit tests.
+// Bit positions: AD7794/AD7795 datasheet Rev. D register tables (communications, status, mode and
+// configuration registers); derived command bytes are checked in the unit tests.
 #ifndef BTSM_FIRMWARE_AD7794_REGS_HPP
 #define BTSM_FIRMWARE_AD7794_REGS_HPP
 
 #include <stdint.h>
 
-#include "firmware/compiler.hpp"
+#include "common/platform.hpp"
 
 namespace btsm {
 

@@ -17,7 +17,7 @@
 #include "common/wire_frame.hpp"
 #include "common/wire_messages.hpp"
 #include "firmware/acquisition.hpp"
-#include "firmware/compiler.hpp"
+#include "common/platform.hpp"
 #include "firmware/config.hpp"
 #include "firmware/device_key.hpp"
 #include "firmware/diagnosis_stage.hpp"

@@ -10,7 +10,7 @@
 #include "common/diagnosis.hpp"
 #include "common/reduced_model.hpp"
 #include "common/wire_messages.hpp"
-#include "firmware/compiler.hpp"
+#include "common/platform.hpp"
 
 namespace btsm {
 

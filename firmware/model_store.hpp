@@ -23,7 +23,7 @@
 #include "common/hmac.hpp"
 #include "common/reduced_model.hpp"
 #include "common/wire_messages.hpp"
-#include "firmware/compiler.hpp"
+#include "common/platform.hpp"
 #include "firmware/eeprom_layout.hpp"
 #include "firmware/eeprom_writer.hpp"
 
@@ -350,7 +350,7 @@ class ModelStore {
     static_assert(sizeof(ModelBreakpoint) == kBlobBreakpointSize && offsetof(ModelBreakpoint, c_q24) == 8 &&
                       offsetof(ModelBreakpoint, d_q24) == 8 + 4 * kModelChannels,
                   "ModelBreakpoint must be the blob's twelve little-endian int32 in member order");
-    static_assert(__BYTE_ORDER__ == __ORDER_LITTLE_ENDIAN__, "breakpoints are read as little-endian int32");
+    static_assert(BTSM_LITTLE_ENDIAN, "breakpoints are read as little-endian int32");
     const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
     const uint16_t first = static_cast<uint16_t>(eeprom_layout::blob_addr(active_slot_) + kBlobOffBreakpoints);
     uint8_t* out = reinterpret_cast<uint8_t*>(&coeff_);

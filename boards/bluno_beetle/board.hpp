@@ -15,6 +15,8 @@
 #include <avr/io.h>
 #include <stdint.h>
 
+#include "common/platform.hpp"
+
 namespace btsm {
 namespace bluno {
 
@@ -32,19 +34,18 @@ static constexpr uint16_t kRxBufferBytes = 48;
 // refilled over several (each poll costs a few hundred cycles). Ring indices are uint8_t.
 static constexpr uint16_t kTxBufferBytes = 72;
 
-// Forced inline: each is one to four instructions, smaller than a call with its register
-// shuffling, and transfer() runs ~200 times per sweep (-finline-limit=10 would keep them calls).
-#define BTSM_BOARD_INLINE inline __attribute__((always_inline))
+// Forced inline (BTSM_ALWAYS_INLINE): each is one to four instructions, smaller than a call with
+// its register shuffling, and transfer() runs ~200 times per sweep.
 struct Spi {
-  static BTSM_BOARD_INLINE void select() { PORTB &= static_cast<uint8_t>(~(1 << Pins::kAdcCs)); }
-  static BTSM_BOARD_INLINE void deselect() { PORTB |= static_cast<uint8_t>(1 << Pins::kAdcCs); }
-  static BTSM_BOARD_INLINE uint8_t transfer(uint8_t mosi) {
+  static BTSM_ALWAYS_INLINE void select() { PORTB &= static_cast<uint8_t>(~(1 << Pins::kAdcCs)); }
+  static BTSM_ALWAYS_INLINE void deselect() { PORTB |= static_cast<uint8_t>(1 << Pins::kAdcCs); }
+  static BTSM_ALWAYS_INLINE uint8_t transfer(uint8_t mosi) {
     SPDR = mosi;
     while (!(SPSR & (1 << SPIF))) {
     }
     return SPDR;
   }
-  static BTSM_BOARD_INLINE bool miso_high() { return (PINB & (1 << Pins::kMiso)) != 0; }
+  static BTSM_ALWAYS_INLINE bool miso_high() { return (PINB & (1 << Pins::kMiso)) != 0; }
 };
 
 namespace detail {
@@ -59,7 +60,7 @@ struct Serial {
   // to the slot before tail, or to the end of the array when tail is not ahead of head. One
   // slot always stays empty (head == tail means empty). The tail read is a snapshot: the UDRE
   // interrupt only ever frees more.
-  static BTSM_BOARD_INLINE uint8_t* tx_claim(uint8_t& n) {
+  static BTSM_ALWAYS_INLINE uint8_t* tx_claim(uint8_t& n) {
     const uint8_t head = detail::tx_head;
     const uint8_t tail = detail::tx_tail;
     if (tail > head) {
@@ -70,7 +71,7 @@ struct Serial {
     return const_cast<uint8_t*>(detail::tx_buf) + head;
   }
   // n <= the claimed n: head + n stays within the array (== its end wraps to 0).
-  static BTSM_BOARD_INLINE void tx_commit(uint8_t n) {
+  static BTSM_ALWAYS_INLINE void tx_commit(uint8_t n) {
     if (n == 0) return;
     // The bytes were stored through a plain pointer: keep the compiler from sinking those stores
     // below the head update that hands them to the interrupt (no instruction is emitted).
@@ -86,14 +87,14 @@ struct Clock {
   static uint32_t millis();
   // Board-specific (not in the HAL contract), for the sleep loop in main.cpp: the low byte of the
   // 1 ms tick count -- one byte, so read without blocking interrupts.
-  static BTSM_BOARD_INLINE uint8_t ticks_low() { return *reinterpret_cast<volatile uint8_t*>(&detail::ms_ticks); }
+  static BTSM_ALWAYS_INLINE uint8_t ticks_low() { return *reinterpret_cast<volatile uint8_t*>(&detail::ms_ticks); }
 };
 
 struct Storage {
   static uint16_t size() { return 1024; }
   // Forced inline: six instructions; the model step reads a 48-byte breakpoint every sweep, where
   // the call and its register shuffling doubled the cost per byte.
-  static BTSM_BOARD_INLINE uint8_t read(uint16_t addr) {
+  static BTSM_ALWAYS_INLINE uint8_t read(uint16_t addr) {
     while (EECR & (1 << EEPE)) {
     }
     EEAR = addr;
@@ -116,7 +117,7 @@ struct Power {
   // loop in main.cpp wakes for every transmitted UART byte (~60 per frame) and every 1 ms tick,
   // and rewriting SMCR around each sleep cost ~11 cycles a wake. No lost wake-up: the caller
   // checks its events after the sleep, and the 1 ms tick bounds any sleep.
-  static BTSM_BOARD_INLINE void idle() { asm volatile("sleep" ::: "memory"); }
+  static BTSM_ALWAYS_INLINE void idle() { asm volatile("sleep" ::: "memory"); }
   // True when poll() has work before its sleep budget ends: a received byte, or a finished AD7794
   // conversion (DOUT/RDY low while CS is held low, as Ad7794::start() leaves it).
   static bool wake_event();
