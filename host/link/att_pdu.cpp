@@ -1,5 +1,7 @@
 #include "host/link/att_pdu.hpp"
 
+#include "common/hex_text.hpp"
+
 #include <algorithm>
 #include <cctype>
 #include <cstdio>
@@ -20,13 +22,6 @@ uint16_t get16(std::span<const uint8_t> p, size_t at) {
   return static_cast<uint16_t>(p[at] | (p[at + 1] << 8));
 }
 void append(Pdu& p, const Bytes& b) { p.insert(p.end(), b.begin(), b.end()); }
-
-int hex_value(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  c = static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  return -1;
-}
 
 }  // namespace
 
@@ -113,7 +108,7 @@ std::optional<Uuid> Uuid::parse(const std::string& text) {
   if (t.size() > 2 && t[0] == '0' && (t[1] == 'x' || t[1] == 'X')) t = t.substr(2);
   for (char c : t) {
     if (c == '-') continue;
-    if (hex_value(c) < 0) return std::nullopt;
+    if (hex_digit_value(c) < 0) return std::nullopt;
     hex.push_back(c);
   }
   if (hex.size() == 4) {
@@ -124,8 +119,8 @@ std::optional<Uuid> Uuid::parse(const std::string& text) {
       (t.size() != 36 || t[8] != '-' || t[13] != '-' || t[18] != '-' || t[23] != '-'))
     return std::nullopt;
   Uuid u;
-  for (size_t i = 0; i < 16; ++i)  // text is big-endian, storage little-endian
-    u.le_[15 - i] = static_cast<uint8_t>(hex_value(hex[2 * i]) * 16 + hex_value(hex[2 * i + 1]));
+  hex_decode(hex.data(), hex.size(), u.le_.data(), u.le_.size(), false);  // all digits: checked above
+  std::reverse(u.le_.begin(), u.le_.end());  // text is big-endian, storage little-endian
   return u;
 }
 

@@ -1,5 +1,7 @@
 #include "host/link/device_keys.hpp"
 
+#include "common/hex_text.hpp"
+
 #include <fcntl.h>
 #include <sys/random.h>
 #include <sys/stat.h>
@@ -35,27 +37,15 @@ std::optional<uint32_t> parse_device_id(const std::string& text) {
 }
 
 std::string key_to_hex(const DeviceKey& key) {
-  std::string s;
-  char buf[3];
-  for (uint8_t b : key) {
-    std::snprintf(buf, sizeof buf, "%02x", b);
-    s += buf;
-  }
+  std::string s(2 * key.size(), '0');
+  hex_encode(key.data(), key.size(), s.data());
   return s;
 }
 
 std::optional<DeviceKey> key_from_hex(const std::string& text) {
-  std::string t;
-  for (char c : text)
-    if (!std::isspace(static_cast<unsigned char>(c))) t.push_back(c);
-  if (t.size() != 2 * kDeviceKeySize) return std::nullopt;
   DeviceKey key{};
-  for (size_t i = 0; i < kDeviceKeySize; ++i) {
-    const char hi = t[2 * i], lo = t[2 * i + 1];
-    if (!std::isxdigit(static_cast<unsigned char>(hi)) || !std::isxdigit(static_cast<unsigned char>(lo)))
-      return std::nullopt;
-    key[i] = static_cast<uint8_t>(std::stoul(t.substr(2 * i, 2), nullptr, 16));
-  }
+  const HexDecodeResult r = hex_decode(text.data(), text.size(), key.data(), key.size(), true);
+  if (r.status != HexStatus::kOk || r.bytes != key.size()) return std::nullopt;
   return key;
 }
 

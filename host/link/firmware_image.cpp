@@ -1,5 +1,6 @@
 #include "host/link/firmware_image.hpp"
 
+#include "common/hex_text.hpp"
 #include "firmware/device_key.hpp"
 
 #include <fcntl.h>
@@ -20,15 +21,6 @@ extern char** environ;
 
 namespace btsm::link {
 
-namespace {
-int hexval(char c) {
-  if (c >= '0' && c <= '9') return c - '0';
-  if (c >= 'A' && c <= 'F') return c - 'A' + 10;
-  if (c >= 'a' && c <= 'f') return c - 'a' + 10;
-  return -1;
-}
-}  // namespace
-
 HexImage parse_intel_hex(const std::string& text, const std::string& source) {
   HexImage img;
   std::istringstream in(text);
@@ -46,12 +38,9 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
     if (eof) fail("data after the end-of-file record");
     if (line[0] != ':') fail("record does not start with ':'");
     if (line.size() < 11 || (line.size() - 1) % 2 != 0) fail("record too short or odd length");
-    std::vector<uint8_t> rec;
-    for (size_t i = 1; i < line.size(); i += 2) {
-      const int hi = hexval(line[i]), lo = hexval(line[i + 1]);
-      if (hi < 0 || lo < 0) fail(fmt::format("bad hex digit at column {}", i + 1));
-      rec.push_back(static_cast<uint8_t>(hi * 16 + lo));
-    }
+    std::vector<uint8_t> rec((line.size() - 1) / 2);
+    const HexDecodeResult hex = hex_decode(line.data() + 1, line.size() - 1, rec.data(), rec.size(), false);
+    if (hex.status != HexStatus::kOk) fail(fmt::format("bad hex digit at column {}", hex.at + 2));
     const size_t len = rec[0];
     if (rec.size() != len + 5) fail(fmt::format("length field {} does not match the record", len));
     uint8_t sum = 0;

@@ -1,6 +1,7 @@
 #include "host/link/model_flash.hpp"
 
 #include "common/crc.hpp"
+#include "common/hex_text.hpp"
 #include "common/hmac.hpp"
 #include "common/reduced_model.hpp"
 
@@ -26,24 +27,12 @@ std::vector<uint8_t> read_file_bytes(const std::string& path) {
 }
 
 std::vector<uint8_t> parse_hex_blob(const std::string& hex, const std::string& where) {
-  std::vector<uint8_t> out;
-  int hi = -1;
-  for (size_t i = 0; i < hex.size(); ++i) {
-    const char c = hex[i];
-    if (std::isspace(static_cast<unsigned char>(c))) continue;
-    int v = -1;
-    if (c >= '0' && c <= '9') v = c - '0';
-    else if (c >= 'a' && c <= 'f') v = c - 'a' + 10;
-    else if (c >= 'A' && c <= 'F') v = c - 'A' + 10;
-    if (v < 0) throw std::runtime_error(fmt::format("{}: blob hex has '{}' at character {}", where, c, i + 1));
-    if (hi < 0) {
-      hi = v;
-    } else {
-      out.push_back(static_cast<uint8_t>(hi * 16 + v));
-      hi = -1;
-    }
-  }
-  if (hi >= 0) throw std::runtime_error(where + ": blob hex has an odd number of digits");
+  std::vector<uint8_t> out(hex.size() / 2);
+  const HexDecodeResult r = hex_decode(hex.data(), hex.size(), out.data(), out.size(), true);
+  if (r.status == HexStatus::kBadCharacter)
+    throw std::runtime_error(fmt::format("{}: blob hex has '{}' at character {}", where, hex[r.at], r.at + 1));
+  if (r.status != HexStatus::kOk) throw std::runtime_error(where + ": blob hex has an odd number of digits");
+  out.resize(r.bytes);
   return out;
 }
 

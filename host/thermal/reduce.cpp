@@ -3,6 +3,8 @@
 
 #include "simulator.hpp"
 
+#include "common/hex_text.hpp"
+
 #include <Eigen/Eigenvalues>
 #include <Eigen/Cholesky>
 #include <Eigen/LU>
@@ -308,13 +310,8 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
   j["quantization"] = {{"status", model_status_name(r.quantize_status.status)}, {"blob_bytes", r.blob.size()}};
   if (!r.blob.empty()) {
     // The blob itself, so `btsm flash-model REDUCED.json` needs no second file.
-    static const char* hex = "0123456789abcdef";
-    std::string h;
-    h.reserve(r.blob.size() * 2);
-    for (uint8_t b : r.blob) {
-      h += hex[b >> 4];
-      h += hex[b & 15];
-    }
+    std::string h(2 * r.blob.size(), '0');
+    hex_encode(r.blob.data(), r.blob.size(), h.data());
     j["blob_hex"] = h;
   }
   j["deviation"] = {{"profile", r.deviation.profile},
