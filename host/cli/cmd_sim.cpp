@@ -1,4 +1,4 @@
-// btsm sim-module: a simulated BTSM module on a pty (sim engineer).
+// btsm sim-module: a simulated BTSM module on a pty.
 #include "host/sim/runner/sim_module.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
