@@ -6,6 +6,7 @@
 // area and issues a fresh single-use nonce, chunks fill it strictly in order, MODEL_COMMIT
 // checks length, CRC-32, HMAC-SHA256(key, nonce || blob) and the blob itself and only then
 // replaces the active model. Any failure ends the upload session and keeps the old model.
+// Not App<NativeBoard> (test_sim_module.cpp): it cannot be told to send index-derived samples, BUSY, an old NACK or pause.
 #include "common/wire_frame.hpp"
 #include "common/wire_messages.hpp"
 
