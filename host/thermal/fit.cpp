@@ -13,8 +13,9 @@
 
 #include <algorithm>
 #include <cmath>
-#include <limits>
+#include <exception>
 #include <stdexcept>
+#include <thread>
 #include <utility>
 
 namespace btsm::thermal {
@@ -182,23 +183,40 @@ class FitPipeline {
   // One output-error stage: solve, record its summary, keep its parameter values. Only the final
   // stage restarts the solver: the earlier ones are starts, their precision is not what is reported.
   LmOutcome run_stage(const std::string& name, OutputErrorProblem& pr, bool final_stage = false) {
-    const auto t0 = Clock::now();
+    announce_stage(name, pr);
+    SolvedStage done = solve_stage(name, pr, final_stage);
+    record_stage(done.summary);
+    p_ = pr.p;
+    return std::move(done.outcome);
+  }
+
+  struct SolvedStage {
+    LmOutcome outcome;
+    StageSummary summary;
+  };
+  void announce_stage(const std::string& name, const OutputErrorProblem& pr) const {
     say(name + ": " + std::to_string(pr.nf()) + " parameters, " + std::to_string(pr.runs.size()) + " runs ...");
+  }
+  // Touches nothing but pr, so independent stages can be solved at once (stage 3's two starts).
+  SolvedStage solve_stage(const std::string& name, OutputErrorProblem& pr, bool final_stage) const {
+    const auto t0 = Clock::now();
     LmOptions lm;
     lm.max_iterations = final_stage ? opts_.max_iterations : opts_.start_iterations;
     lm.relative_tolerance = opts_.relative_tolerance;
     lm.restarts = final_stage ? 4 : 0;
-    LmOutcome o = levenberg_marquardt(pr, lm);
-    StageSummary st;
-    st.name = name;
-    st.iterations = o.iterations;
-    st.rms_K = o.ev.count ? std::sqrt(o.ev.ssr / static_cast<double>(o.ev.count)) : 0.0;
-    st.seconds = seconds_since(t0);
-    say(name + ": rms " + fmt_double(st.rms_K, 4) + " K after " + std::to_string(o.iterations) + " iterations (" +
+    SolvedStage done;
+    done.outcome = levenberg_marquardt(pr, lm);
+    const LmOutcome& o = done.outcome;
+    done.summary.name = name;
+    done.summary.iterations = o.iterations;
+    done.summary.rms_K = o.ev.count ? std::sqrt(o.ev.ssr / static_cast<double>(o.ev.count)) : 0.0;
+    done.summary.seconds = seconds_since(t0);
+    return done;
+  }
+  void record_stage(const StageSummary& st) {
+    say(st.name + ": rms " + fmt_double(st.rms_K, 4) + " K after " + std::to_string(st.iterations) + " iterations (" +
         fmt_double(st.seconds, 3) + " s)");
     res_.stages.push_back(st);
-    p_ = pr.p;
-    return o;
   }
 
   // Stage 1: the cooling segments (>= 10 rows in natural cooling) of every recording, and the
@@ -315,24 +333,42 @@ class FitPipeline {
       starts[0].first = ", equation-error start";
       starts.emplace_back(", neutral start", neutral_operating_start(net_, recs_, cols_, op_auto, p_));
     }
-    double best_ssr = std::numeric_limits<double>::infinity();
-    std::size_t best = 0;
-    Eigen::VectorXd best_p = p_;
-    std::vector<Eigen::VectorXd> best_x0 = x0_whole_;
-    for (std::size_t k = 0; k < starts.size(); ++k) {
-      p_ = starts[k].second;
-      OutputErrorProblem pr = make_problem(whole_, free_op_only_, x0_whole_);
-      const LmOutcome o = run_stage("stage 3 (operating output error" + starts[k].first + ")", pr);
-      if (o.ev.ssr < best_ssr) {
-        best_ssr = o.ev.ssr;
-        best = k;
-        best_p = pr.p;
-        best_x0 = pr.x0;
+    // The starts are independent problems over the same recordings, so they are solved at once:
+    // the neutral start then costs no wall time of its own while the other one runs (each
+    // evaluation also spreads its runs over the cores; five runs on two cores leave one idle for
+    // a fifth of the time, which the second problem fills).
+    std::vector<OutputErrorProblem> problems;
+    std::vector<std::string> names;
+    for (const auto& start : starts) {
+      p_ = start.second;
+      problems.push_back(make_problem(whole_, free_op_only_, x0_whole_));
+      names.push_back("stage 3 (operating output error" + start.first + ")");
+      announce_stage(names.back(), problems.back());
+    }
+    std::vector<SolvedStage> solved(starts.size());
+    std::vector<std::exception_ptr> failed(starts.size());
+    auto solve = [&](std::size_t k) {
+      try {
+        solved[k] = solve_stage(names[k], problems[k], false);
+      } catch (...) {
+        failed[k] = std::current_exception();
       }
+    };
+    std::vector<std::thread> others;
+    for (std::size_t k = 1; k < starts.size(); ++k) others.emplace_back(solve, k);
+    solve(0);
+    for (auto& t : others) t.join();
+    for (const auto& e : failed)
+      if (e) std::rethrow_exception(e);
+    std::size_t best = 0;
+    for (std::size_t k = 0; k < starts.size(); ++k) {
+      record_stage(solved[k].summary);
+      const double ssr = solved[k].outcome.ev.ssr, best_ssr = solved[best].outcome.ev.ssr;
+      if (std::isfinite(ssr) && !(best_ssr <= ssr)) best = k;  // a failed (NaN) start never wins
     }
     if (starts.size() > 1) say("stage 3: kept the minimum of the" + starts[best].first.substr(1));
-    p_ = best_p;
-    x0_whole_ = best_x0;
+    p_ = problems[best].p;
+    x0_whole_ = problems[best].x0;
   }
 
   // Stage 4: joint output error of every free parameter over all recordings, then the
