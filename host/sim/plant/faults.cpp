@@ -1,6 +1,7 @@
 #include "host/sim/plant/faults.hpp"
 
 #include "host/sim/plant/profile.hpp"
+#include "host/sim/plant/strict_number.hpp"
 
 #include <cmath>
 #include <sstream>
@@ -10,16 +11,9 @@ namespace btsm::sim {
 namespace {
 
 double number(const std::string& t, const std::string& what) {
-  size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(t, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (t.empty() || used != t.size() || !std::isfinite(v))
-    throw std::invalid_argument(what + ": '" + t + "' is not a number");
-  return v;
+  const auto v = strict_number(t);
+  if (!v) throw std::invalid_argument(what + ": '" + t + "' is not a number");
+  return *v;
 }
 
 int channel(const std::string& arg, const std::string& spec) {

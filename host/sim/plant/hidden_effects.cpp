@@ -1,5 +1,7 @@
 #include "host/sim/plant/hidden_effects.hpp"
 
+#include "host/sim/plant/strict_number.hpp"
+
 #include <cmath>
 #include <stdexcept>
 
@@ -25,15 +27,9 @@ double number(const std::string& text, const std::vector<std::string>& suffixes,
       t.resize(t.size() - s.size());
       break;
     }
-  size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(t, &used);
-  } catch (const std::exception&) {
-    used = 0;
-  }
-  if (t.empty() || used != t.size() || !std::isfinite(v)) fail(what + ": '" + text + "' is not a number");
-  return v * scale;
+  const auto v = strict_number(t);
+  if (!v) fail(what + ": '" + text + "' is not a number");
+  return *v * scale;
 }
 
 double duration(const std::string& text, const std::string& what, const SpecError& fail) {

@@ -1,5 +1,7 @@
 #include "host/sim/plant/profile.hpp"
 
+#include "host/sim/plant/strict_number.hpp"
+
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -20,16 +22,9 @@ std::string trim(const std::string& s) {
 double parse_number(const std::string& text, const std::string& what) {
   const std::string t = trim(text);
   if (t.empty()) throw std::invalid_argument(what + ": empty number");
-  size_t used = 0;
-  double v = 0.0;
-  try {
-    v = std::stod(t, &used);
-  } catch (const std::exception&) {
-    throw std::invalid_argument(what + ": '" + t + "' is not a number");
-  }
-  if (used != t.size() || !std::isfinite(v))
-    throw std::invalid_argument(what + ": '" + t + "' is not a number");
-  return v;
+  const auto v = strict_number(t);
+  if (!v) throw std::invalid_argument(what + ": '" + t + "' is not a number");
+  return *v;
 }
 
 // Splits on commas and white space, dropping empty items.

@@ -2,6 +2,7 @@
 // behind it, faults and hidden effects acting where they should.
 #include "host/sim/plant/probes.hpp"
 #include "host/sim/plant/spindle_plant.hpp"
+#include "host/sim/plant/strict_number.hpp"
 
 #include <gtest/gtest.h>
 
@@ -180,6 +181,15 @@ TEST(Probes, Pt1000AndFaultsReachTheFrontEnd) {
   EXPECT_TRUE(fe.reference_lost);
   EXPECT_FALSE(fe.chip_missing);
   EXPECT_NEAR(fe.probe_ohm[3], pt1000_ohm(20.0), 1e-9);
+}
+
+// The one number reader behind profiles, faults and hidden effects: the whole text, finite.
+TEST(StrictNumber, TheWholeTextMustBeOneFiniteNumber) {
+  EXPECT_EQ(strict_number("12"), 12.0);
+  EXPECT_EQ(strict_number("-0.5"), -0.5);
+  EXPECT_EQ(strict_number("1e3"), 1000.0);
+  for (const char* bad : {"", "12x", "x", "6h", "1.5W", "nan", "inf", "1e999", "--1"})
+    EXPECT_FALSE(strict_number(bad).has_value()) << bad;
 }
 
 }  // namespace
