@@ -9,20 +9,6 @@
 namespace btsm::sim {
 namespace {
 
-class ModelOnBus final : public SpiPeripheral {
- public:
-  explicit ModelOnBus(Ad7794Model& m) : m_(m) {}
-  void set_cs(bool low) override { m_.set_cs(low); }
-  uint8_t transfer(uint8_t mosi) override { return m_.transfer(mosi); }
-  bool dout_low() override { return m_.rdy_low(); }
-  void advance(double s) override { m_.advance(s); }
-  double time_to_next_event() override { return m_.time_to_next_event(); }
-  void power_on_reset() override { m_.power_on_reset(); }
-
- private:
-  Ad7794Model& m_;
-};
-
 class AvrModuleBoard final : public ModuleBoard {
  public:
   explicit AvrModuleBoard(const ModuleBoardOptions& o) : opts_(o), adc_(o.adc), bus_(adc_) {
@@ -75,7 +61,7 @@ class AvrModuleBoard final : public ModuleBoard {
  private:
   ModuleBoardOptions opts_;
   Ad7794Model adc_;
-  ModelOnBus bus_;
+  SpiModelAdapter<Ad7794Model> bus_;  // the AD7794 model on the image's SPI pins
   std::unique_ptr<SimavrHarness> harness_;
   std::vector<uint8_t> out_;
 };
