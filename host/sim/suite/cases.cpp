@@ -94,17 +94,33 @@ std::string openings(Rng& rng, const Procedure& p) {
   return join(items, ",");
 }
 
+// What every case starts with: its identity, a room temperature (the first draw from the case's
+// own generator, so effect and quiet cases draw alike) and its procedure.
+struct CaseStart {
+  SuiteCase c;
+  double room_c = 0;
+  Procedure proc;
+};
+CaseStart start_case(CaseKind kind, const std::string& family, const std::string& variant, unsigned seed,
+                     ProcedureSize size, Rng& rng) {
+  CaseStart s;
+  s.c.kind = kind;
+  s.c.family = family;
+  s.c.variant = variant;
+  s.c.seed = seed;
+  s.c.procedure = size;
+  s.room_c = round_to(uniform(rng, 18, 24), 0.1);
+  s.c.ambient = fmt::format("{:.1f}", s.room_c);
+  s.proc = make_procedure({size}, seed);
+  return s;
+}
+
 SuiteCase effect_case(const std::string& family, const std::string& variant, unsigned seed, ProcedureSize size) {
   Rng rng(seed);
-  SuiteCase c;
-  c.kind = CaseKind::Effect;
-  c.family = family;
-  c.variant = variant;
-  c.seed = seed;
-  c.procedure = size;
-  const double room = round_to(uniform(rng, 18, 24), 0.1);
-  c.ambient = fmt::format("{:.1f}", room);
-  const Procedure proc = make_procedure({size}, seed);
+  CaseStart start = start_case(CaseKind::Effect, family, variant, seed, size, rng);
+  SuiteCase& c = start.c;
+  const double room = start.room_c;
+  const Procedure& proc = start.proc;
   const auto P = [&](const std::string& n, const std::string& u, double v) { c.parameters.push_back({n, u, v}); };
 
   if (family == "heat_source_transient") {
@@ -210,15 +226,11 @@ SuiteCase effect_case(const std::string& family, const std::string& variant, uns
 
 SuiteCase quiet_case(const std::string& variant, unsigned seed, ProcedureSize size) {
   Rng rng(seed);
-  SuiteCase c;
-  c.kind = variant == "clean" ? CaseKind::Clean : CaseKind::Distractor;
-  c.family = "none";
-  c.variant = variant;
-  c.seed = seed;
-  c.procedure = size;
-  const double room = round_to(uniform(rng, 18, 24), 0.1);
-  c.ambient = fmt::format("{:.1f}", room);
-  const Procedure proc = make_procedure({size}, seed);
+  CaseStart start =
+      start_case(variant == "clean" ? CaseKind::Clean : CaseKind::Distractor, "none", variant, seed, size, rng);
+  SuiteCase& c = start.c;
+  const double room = start.room_c;
+  const Procedure& proc = start.proc;
   if (variant == "ambient drift") {
     c.ambient = wandering_ambient(rng, room, proc.total_s);
   } else if (variant == "coolant column without effect") {
