@@ -68,13 +68,7 @@ INSTANTIATE_TEST_SUITE_P(
                       FaultCase{"openchain:ch3@120", kAll, wire::kFaultOpen | wire::kFaultAdc | wire::kFaultReference},
                       FaultCase{"noadc@120", kAll, wire::kFaultAdc},
                       FaultCase{"noref@120", kAll, wire::kFaultReference | wire::kFaultAdc}),
-    [](const ::testing::TestParamInfo<FaultCase>& i) {
-      std::string n = i.param.spec;
-      n = n.substr(0, n.find('@'));
-      for (auto& c : n)
-        if (c == ':') c = '_';
-      return n;
-    });
+    [](const ::testing::TestParamInfo<FaultCase>& i) { return fault_case_name(i.param.spec); });
 
 }  // namespace
 }  // namespace btsm::test

@@ -1,10 +1,12 @@
 #pragma once
 // Test helper: a SimModule driven synchronously as a host link (send / step / capture), with the
 // plant's truth recorded at every step for comparison with the SAMPLE frames.
+#include "common/channels.hpp"
 #include "host/sim/runner/sim_module.hpp"
 #include "wire_capture.hpp"
 
 #include <array>
+#include <string>
 #include <vector>
 
 namespace btsm::test {
@@ -38,7 +40,16 @@ struct SimLink {
   sim::SimModule m;
   Capture cap;
   std::vector<double> truth_t;
-  std::vector<std::array<double, 5>> truth_c;
+  std::vector<std::array<double, kChannels>> truth_c;
 };
+
+// Test name of a fault case from its spec ("open:ch2@30" -> "open_ch2"): the fault without its
+// time, in the characters GoogleTest allows.
+inline std::string fault_case_name(const std::string& spec) {
+  std::string n = spec.substr(0, spec.find('@'));
+  for (auto& c : n)
+    if (c == ':') c = '_';
+  return n;
+}
 
 }  // namespace btsm::test

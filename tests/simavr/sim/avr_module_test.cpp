@@ -146,13 +146,7 @@ TEST_P(AvrModuleFault, SensorFaultOnTheRightChannelsAndNoAlarm) {
 INSTANTIATE_TEST_SUITE_P(Faults, AvrModuleFault,
                          ::testing::Values(AvrFault{"open:ch2@30", 0x02}, AvrFault{"short:ch1@30", 0x01},
                                            AvrFault{"noadc@30", 0x1F}, AvrFault{"noref@30", 0x1F}),
-                         [](const ::testing::TestParamInfo<AvrFault>& i) {
-                           std::string n = i.param.spec;
-                           n = n.substr(0, n.find('@'));
-                           for (auto& c : n)
-                             if (c == ':') c = '_';
-                           return n;
-                         });
+                         [](const ::testing::TestParamInfo<AvrFault>& i) { return fault_case_name(i.param.spec); });
 
 }  // namespace
 }  // namespace btsm::test

@@ -3,6 +3,7 @@
 #include "common/crc.hpp"
 #include "common/hmac.hpp"
 #include "common/reduced_model.hpp"
+#include "firmware/device_key.hpp"
 
 #include <poll.h>
 #include <unistd.h>
@@ -16,8 +17,10 @@ namespace btsm::test {
 
 using namespace btsm::wire;
 
-FakeModuleOptions::FakeModuleOptions() {
-  for (uint8_t i = 0; i < 32; ++i) key[i] = i;  // device_key::dev_key_byte
+std::array<uint8_t, 32> fake_module_key() {
+  std::array<uint8_t, 32> key{};
+  for (uint8_t i = 0; i < key.size(); ++i) key[i] = device_key::dev_key_byte(i);
+  return key;
 }
 
 FakeModule::FakeModule(int fd, FakeModuleOptions opts) : opts_(opts), fd_(fd), next_index_(opts.first_sample_index) {

@@ -20,16 +20,18 @@
 
 namespace btsm::test {
 
+// The key a FakeModule starts with: the firmware's development key 00 01 .. 1F (device_key.hpp).
+std::array<uint8_t, 32> fake_module_key();
+
 struct FakeModuleOptions {
   uint32_t device_id = 0x0000DE70;
-  std::array<uint8_t, 32> key{};            // default: device_key dev key 00 01 .. 1F
+  std::array<uint8_t, 32> key = fake_module_key();
   std::chrono::milliseconds sample_period{10};
   uint32_t first_sample_index = 0;
   bool stream_samples = true;
   bool answer_get_config = true;            // false: NACK UNKNOWN_TYPE like an older firmware
   uint32_t sample_time_step_ms = 5000;      // module time between samples
   uint32_t busy_every = 0;                  // answer every Nth MODEL_CHUNK with BUSY (0 = never)
-  FakeModuleOptions();
 };
 
 class FakeModule {

@@ -21,12 +21,6 @@ using btsm::test::FakePeripheral;
 
 namespace {
 
-DeviceKey dev_key() {
-  DeviceKey k{};
-  for (uint8_t i = 0; i < 32; ++i) k[i] = i;
-  return k;
-}
-
 enum class Db { kBluno, kNus, kHm10 };
 
 // Peripheral with database `db`, its serial characteristic bridged to a fake module.
@@ -108,7 +102,7 @@ TEST(GattSerial, FlashModelOverBleUsesTwentyByteWrites) {
   GattSerialTransport t(rig.connector(), "BLE fake");
   Session s(t, fast());
   const auto blob = test::make_test_blob(4);
-  const auto sum = flash_model(s, blob, dev_key());
+  const auto sum = flash_model(s, blob, test::fake_module_key());
   EXPECT_TRUE(sum.verified);
   EXPECT_EQ(rig.module->active_model(), blob);
   size_t writes = 0;

@@ -22,12 +22,6 @@ using btsm::test::FakeModuleOptions;
 
 namespace {
 
-DeviceKey dev_key() {
-  DeviceKey k{};
-  for (uint8_t i = 0; i < 32; ++i) k[i] = i;
-  return k;
-}
-
 // host pty <-> proxy <-> socketpair <-> fake module
 struct FaultyRig {
   test::PtyPair pty;
@@ -121,7 +115,7 @@ TEST_P(FlashFaults, ModelIsOldOrNewNeverHalf) {
   // Install the old model (retry the whole upload if the link defeats it).
   for (int i = 0; i < 5 && rig.module->active_model() != old_blob; ++i) {
     try {
-      flash_model(*rig.session, old_blob, dev_key());
+      flash_model(*rig.session, old_blob, test::fake_module_key());
     } catch (const LinkError&) {
     }
   }
@@ -129,7 +123,7 @@ TEST_P(FlashFaults, ModelIsOldOrNewNeverHalf) {
   bool ok = false;
   std::string err;
   try {
-    ok = flash_model(*rig.session, new_blob, dev_key()).verified;
+    ok = flash_model(*rig.session, new_blob, test::fake_module_key()).verified;
   } catch (const LinkError& e) {
     err = e.what();
   }
@@ -154,7 +148,7 @@ TEST(LinkCut, DisconnectMidTransferKeepsOldModelAndReportsDeviceGone) {
     o.sample_period = Millis(50);
     FaultyRig rig(plan, o);
     try {
-      flash_model(*rig.session, test::make_test_blob(2), dev_key());
+      flash_model(*rig.session, test::make_test_blob(2), test::fake_module_key());
       FAIL() << "the link was cut after " << cut << " bytes, the upload cannot have finished";
     } catch (const LinkError& e) {
       EXPECT_TRUE(e.kind() == LinkErrorKind::kDeviceGone || e.kind() == LinkErrorKind::kTimeout) << e.what();

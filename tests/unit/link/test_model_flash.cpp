@@ -18,12 +18,6 @@ using btsm::test::FakeModuleOptions;
 
 namespace {
 
-DeviceKey dev_key() {
-  DeviceKey k{};
-  for (uint8_t i = 0; i < 32; ++i) k[i] = i;
-  return k;
-}
-
 struct Rig {
   test::PtyPair pty;
   FakeModule module;
@@ -48,7 +42,7 @@ TEST(FlashModel, RoundTripWithReadBackAndTwentyByteFrames) {
   size_t progress_calls = 0;
   FlashOptions fo;
   fo.progress = [&](const FlashProgress&) { ++progress_calls; };
-  const FlashSummary s = flash_model(rig.session, blob, dev_key(), fo);
+  const FlashSummary s = flash_model(rig.session, blob, test::fake_module_key(), fo);
   EXPECT_TRUE(s.verified);
   std::cout << "464-byte blob: " << s.chunks << " chunks, largest encoded chunk frame " << s.max_chunk_frame
             << " bytes\n";
@@ -64,8 +58,8 @@ TEST(FlashModel, RoundTripWithReadBackAndTwentyByteFrames) {
 TEST(FlashModel, WrongKeyIsRefusedAndOldModelKept) {
   Rig rig;
   const auto old_blob = test::make_test_blob(1);
-  flash_model(rig.session, old_blob, dev_key());
-  DeviceKey wrong = dev_key();
+  flash_model(rig.session, old_blob, test::fake_module_key());
+  DeviceKey wrong = test::fake_module_key();
   wrong[5] ^= 0x01;
   try {
     flash_model(rig.session, test::make_test_blob(2), wrong);
@@ -82,7 +76,7 @@ TEST(FlashModel, WrongKeyIsRefusedAndOldModelKept) {
 TEST(FlashModel, ReplayedCommitIsRefused) {
   Rig rig;
   const auto blob_a = test::make_test_blob(1);
-  flash_model(rig.session, blob_a, dev_key());
+  flash_model(rig.session, blob_a, test::fake_module_key());
   const auto captured = rig.module.commit_payloads().back();  // an attacker recorded this
   ASSERT_EQ(captured.size(), 32u);
 
@@ -114,7 +108,7 @@ TEST(FlashModel, InvalidBlobsAreRefusedLocallyOrByTheModule) {
   auto blob = test::make_test_blob(1);
   blob[100] ^= 0xFF;  // breaks the stored CRC
   try {
-    flash_model(rig.session, blob, dev_key());
+    flash_model(rig.session, blob, test::fake_module_key());
     FAIL();
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("CRC"), std::string::npos) << e.what();
@@ -123,7 +117,7 @@ TEST(FlashModel, InvalidBlobsAreRefusedLocallyOrByTheModule) {
   FlashOptions fo;
   fo.validate_locally = false;
   try {
-    flash_model(rig.session, blob, dev_key(), fo);
+    flash_model(rig.session, blob, test::fake_module_key(), fo);
     FAIL();
   } catch (const NackError& e) {
     EXPECT_EQ(e.code(), static_cast<uint8_t>(wire::Nack::BlobCrc));
@@ -163,7 +157,7 @@ TEST(FlashModel, BusyAnswersAreRetriedNotFatal) {
   o.busy_every = 5;
   Rig rig(o);
   const auto blob = test::make_test_blob(5);
-  EXPECT_TRUE(flash_model(rig.session, blob, dev_key()).verified);
+  EXPECT_TRUE(flash_model(rig.session, blob, test::fake_module_key()).verified);
   EXPECT_GT(rig.session.busy_answers(), 0u);
   EXPECT_EQ(rig.module.active_model(), blob);
 }
