@@ -8,6 +8,8 @@
 
 #include <cmath>
 #include <fstream>
+#include <string>
+#include <vector>
 
 namespace btsm::sim {
 namespace {
@@ -117,35 +119,36 @@ TEST(SpindlePlant, WarmsUpTowardsTheNetworksSteadyState) {
   EXPECT_NEAR(p.probe_temp_c(5), 20.0 + 0.5 * (p.probe_temp_c(2) - 20.0), 1e-12);
 }
 
-TEST(SpindlePlant, BearingFaultHeatsTheRearBearingMost) {
-  SpindlePlant base(warm(3)), faulty([] {
-    auto o = warm(3);
-    o.faults.push_back(parse_fault("bearing:25W@1h"));
-    return o;
-  }());
+// A bearing fault's effect after 3 h of warm-up (the fault from 1 h): the rise it adds at the rear
+// (channel 1) and front (channel 3) bearing probes over the same plant without it.
+struct FaultRise {
+  double rear_k, front_k;
+  std::vector<double> extra_heat_w;
+};
+FaultRise rise_from_fault(const std::string& spec) {
+  auto with_fault = warm(3);
+  with_fault.faults.push_back(parse_fault(spec));
+  SpindlePlant base(warm(3)), faulty(with_fault);
   base.advance_to(3 * 3600);
   faulty.advance_to(3 * 3600);
-  const double d1 = faulty.probe_temp_c(1) - base.probe_temp_c(1);
-  const double d3 = faulty.probe_temp_c(3) - base.probe_temp_c(3);
-  EXPECT_GT(d1, 1.0);
-  EXPECT_GT(d1, d3);
-  EXPECT_DOUBLE_EQ(faulty.extra_heat_w()[0], 25.0);
+  const auto& extra = faulty.extra_heat_w();
+  return {faulty.probe_temp_c(1) - base.probe_temp_c(1), faulty.probe_temp_c(3) - base.probe_temp_c(3),
+          std::vector<double>(extra.data(), extra.data() + extra.size())};
+}
+
+TEST(SpindlePlant, BearingFaultHeatsTheRearBearingMost) {
+  const FaultRise r = rise_from_fault("bearing:25W@1h");
+  EXPECT_GT(r.rear_k, 1.0);
+  EXPECT_GT(r.rear_k, r.front_k);
+  EXPECT_DOUBLE_EQ(r.extra_heat_w[0], 25.0);
 }
 
 TEST(SpindlePlant, FrontBearingFaultHeatsTheFrontBearingMost) {
-  SpindlePlant base(warm(3)), faulty([] {
-    auto o = warm(3);
-    o.faults.push_back(parse_fault("bearing:front:25W@1h"));
-    return o;
-  }());
-  base.advance_to(3 * 3600);
-  faulty.advance_to(3 * 3600);
-  const double d1 = faulty.probe_temp_c(1) - base.probe_temp_c(1);
-  const double d3 = faulty.probe_temp_c(3) - base.probe_temp_c(3);
-  EXPECT_GT(d3, 1.0);
-  EXPECT_GT(d3, d1);
-  EXPECT_DOUBLE_EQ(faulty.extra_heat_w()[2], 25.0);
-  EXPECT_DOUBLE_EQ(faulty.extra_heat_w()[0], 0.0);
+  const FaultRise r = rise_from_fault("bearing:front:25W@1h");
+  EXPECT_GT(r.front_k, 1.0);
+  EXPECT_GT(r.front_k, r.rear_k);
+  EXPECT_DOUBLE_EQ(r.extra_heat_w[2], 25.0);
+  EXPECT_DOUBLE_EQ(r.extra_heat_w[0], 0.0);
 }
 
 TEST(SpindlePlant, HiddenEffectsAddHeatTheModelDoesNotHave) {
