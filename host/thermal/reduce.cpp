@@ -26,9 +26,11 @@ Eigen::MatrixXd psd_factor(const Eigen::MatrixXd& P) {
 
 }  // namespace
 
-SpeedReduction reduce_with_inputs(const Network& net, const Eigen::VectorXd& params, double speed,
-                                  const Eigen::MatrixXd& E) {
-  const NodeMatrices m = assemble(net, params, speed);
+namespace {
+
+// One speed's reduction from its assembled matrices (A = -C^-1 G, inputs E), so that each speed's
+// network is assembled once.
+SpeedReduction reduce_assembled(const Network& net, const NodeMatrices& m, double speed, const Eigen::MatrixXd& E) {
   const ModalForm f = modal_form(m);
   const int n = net.node_count();
   SpeedReduction r;
@@ -96,13 +98,21 @@ SpeedReduction reduce_with_inputs(const Network& net, const Eigen::VectorXd& par
   return r;
 }
 
+}  // namespace
+
+SpeedReduction reduce_with_inputs(const Network& net, const Eigen::VectorXd& params, double speed,
+                                  const Eigen::MatrixXd& E) {
+  return reduce_assembled(net, assemble(net, params, speed), speed, E);
+}
+
 SpeedReduction reduce_at_speed(const Network& net, const Eigen::VectorXd& params, double speed) {
   const NodeMatrices m = assemble(net, params, speed);
   if (m.source_to_node.cols() == 0) throw std::runtime_error("reduction: the network has no heat sources (inputs)");
-  SpeedReduction r = reduce_with_inputs(net, params, speed, m.source_to_node);
+  SpeedReduction r = reduce_assembled(net, m, speed, m.source_to_node);
   r.source_w = m.source_w;
-  const Eigen::VectorXd amb0 = steady_state_c(net, params, speed, 0.0);
-  r.steady_rise_K = amb0;
+  // The steady rise over ambient (ambient at 0, no boundaries: reduce refuses them), as
+  // steady_state_c computes it, from the same matrices.
+  r.steady_rise_K = Eigen::FullPivLU<Eigen::MatrixXd>(m.G).solve(m.heat_w);
   r.bt_steady_rise_K = r.bt.c * (-(r.bt.b * m.source_w)(0) / r.bt.pole);
   return r;
 }
@@ -171,7 +181,7 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
   const double cool_speed = 0.0;
   const NodeMatrices mc = assemble(net, params, cool_speed);
   // impulse of B = C x_stop through A = -C^-1 G starts the free response at x_stop
-  out.cooling = reduce_with_inputs(net, params, cool_speed, mc.capacitance.asDiagonal() * x_stop);
+  out.cooling = reduce_assembled(net, mc, cool_speed, mc.capacitance.asDiagonal() * x_stop);
   out.cooling.source_w = Eigen::VectorXd::Zero(1);
   out.cooling.steady_rise_K = Eigen::VectorXd::Zero(net.node_count());
   {
