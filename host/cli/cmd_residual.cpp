@@ -1,9 +1,12 @@
-// `btsm residual`: close the loop — fit the base model, test and trace its residual, and attribute
-// it to an effect of the library, to "none" or to "unexplained" (host/residual/).
+// `btsm residual`: close the loop — fit the base model, test and trace its residual, propose effects
+// from it, refit them jointly with the base, and attribute the residual to an effect, a partial
+// explanation, "none" or "unexplained" (host/residual/).
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "host/residual/residual_loop.hpp"
 #include "host/residual/residual_report.hpp"
+#include "host/thermal/column_map.hpp"
+#include "host/thermal/declared_columns.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
@@ -24,7 +27,7 @@ namespace rs = btsm::residual;
 struct ResidualArgs {
   std::vector<std::string> fit, check;
   std::string preset, network, report_dir, effects;
-  std::vector<std::string> columns;
+  std::vector<std::string> columns, boundaries, events;
   bool use_values = false, json = false;
   rs::LoopOptions opts;
 };
@@ -44,14 +47,24 @@ void run_residual(ResidualArgs& a) {
     }
     for (const auto& f : a.fit) fit.push_back(th::read_recording_csv(f));
     for (const auto& f : a.check) check.push_back(th::read_recording_csv(f));
+    for (auto* set : {&fit, &check})
+      for (auto& r : *set) th::declare_columns(r, a.boundaries, a.events);
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
   std::vector<th::Recording> all = fit;
   all.insert(all.end(), check.begin(), check.end());
   try {
-    const std::string said = th::map_measurements(model.network, all, a.columns);
-    if (!said.empty()) std::cerr << "residual: from the recordings' channel roles:" << said << "\n";
+    if (a.use_values) {
+      // a fitted model says itself which column measures which node; only --column changes that
+      th::remap_measurements(model.network, a.columns);
+      std::string said;
+      for (const auto& m : model.network.measurements) said += " " + model.network.nodes[static_cast<std::size_t>(m.node)].name + "=" + m.column;
+      std::cerr << "residual: the model's own column mapping:" << said << "\n";
+    } else {
+      const std::string said = th::map_measurements(model.network, all, a.columns);
+      if (!said.empty()) std::cerr << "residual: from the recordings' channel roles:" << said << "\n";
+    }
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
@@ -99,27 +112,33 @@ void register_residual_commands(CLI::App& app) {
   CLI::App* cmd = app.add_subcommand(
       "residual",
       "Close the loop: fit the base thermal network on --fit recordings, test its residuals (whiteness per channel\n"
-      "and mode, correlation with speed, speed changes, temperatures, ambient and rates), trace the unexplained heat\n"
-      "flow per node (inverse method on the residual), then fit augmented models from the effect library\n"
-      "(heat_source_transient, temperature_dependent_heat, sensor_lag, ambient_dynamics, extra_heat_input) and\n"
-      "attribute the residual by check-recording error AND BIC AND parameter significance. Prints the effect (or\n"
-      "'none' for a white residual, 'unexplained' for structure nothing explains) with its parameters +- 1 sigma\n"
-      "and RMSE / NMSE / max error before and after on fit and check recordings.");
+      "and mode, correlations), trace the unexplained heat per node, regress the residual on a dictionary of physical\n"
+      "regressors (what the base refit would absorb projected out, stability over time-block resamples), refit the\n"
+      "best proposals jointly with every base parameter from several starts, and decide on held-out evidence:\n"
+      "BIC on the fit recordings, parameter significance and identifiability, check-recording RMSE. Families:\n"
+      "heat_source_transient, temperature_dependent_heat, coupled_heat, extra_heat_input, sensor_lag, sensor_drift,\n"
+      "ambient_dynamics, second_boundary, event_conductance, latent_mass. Verdict: effect, partial (explains part of\n"
+      "the check error only; reported, never claimed), none (nothing beyond noise) or unexplained; with the effect's\n"
+      "quantities in physical terms and RMSE / NMSE / max error before and after on fit and check recordings.");
   cmd->add_option("--fit", a->fit, "Recording CSV(s) to fit on")->required()->check(CLI::ExistingFile);
   cmd->add_option("--check", a->check, "Recording CSV(s) to score on (not used for fitting)")->required()->check(CLI::ExistingFile);
   cmd->add_option("--preset", a->preset, "Base network preset (spindle4)");
-  cmd->add_option("--network", a->network, "Base network JSON (its measured columns must be in every recording)");
+  cmd->add_option("--network", a->network, "Base network JSON, or with --use-values a fitted model (its measured columns must be in every recording)");
   cmd->add_option("--column", a->columns, "NODE=COLUMN: which recording column measures a node (repeatable; NODE= drops it)");
+  cmd->add_option("--boundary", a->boundaries,
+                  "COL: declare a recorded column as a second thermal boundary (degC, e.g. coolant), as '# boundary_columns' does (repeatable)");
+  cmd->add_option("--event", a->events, "COL: declare a recorded 0/1 column as a switch event, as '# event_columns' does (repeatable)");
   cmd->add_flag("--use-values", a->use_values,
-                "Do not refit the base: use the parameter values of --network (a fitted model) and fit only the effects");
-  cmd->add_option("--effects", a->effects, "Comma-separated subset of the effect library to try (default: all)");
+                "Do not refit the base: use the parameter values (and column mapping) of --network, a fitted model, and fit only the effects");
+  cmd->add_option("--effects", a->effects, "Comma-separated subset of the effect families to try (default: all)");
   cmd->add_option("--bic-margin", a->opts.bic_margin, "BIC decrease an effect must achieve on the fit recordings (default 10)");
   cmd->add_option("--check-improvement", a->opts.check_improvement, "Required ratio check RMSE before/after (default 1.25)");
-  cmd->add_option("--param-z", a->opts.param_z, "Required |parameter| / sigma of the effect's key parameter (default 3)");
-  cmd->add_option("--max-heat-nodes", a->opts.max_heat_nodes, "Heat effects are tried at this many nodes with the most traced heat (default 4)");
-  cmd->add_option("--max-sensor-columns", a->opts.max_sensor_columns, "sensor_lag is tried on this many columns (default 2)");
-  cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations per screening fit (default 60)");
-  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations for refining the best candidates and for the base fit (default 600)");
+  cmd->add_option("--explained-factor", a->opts.explained_factor,
+                  "Check RMSE cut that counts as explaining the residual; less is 'partial' (default 2)");
+  cmd->add_option("--param-z", a->opts.param_z, "Required |parameter| / sigma of the effect's key parameters (default 3)");
+  cmd->add_option("--max-candidates", a->opts.max_candidates, "Proposals refitted jointly, best screening score first (default 4)");
+  cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations of each start's effect-only stage (default 60)");
+  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations of each joint refit and of the base fit (default 300)");
   cmd->add_option("--trace-step", a->opts.trace_step_s, "Step of the unexplained-heat trace [s] (default max(60 s, 10 samples))");
   cmd->add_option("--report", a->report_dir, "Write residual_result.json, residual_table.txt and plots (PNG + SVG) here");
   cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");

@@ -144,7 +144,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   progress("residual loop: testing residuals, tracing unexplained heat, trying the effect library");
   residual::LoopOptions lo;
   lo.fit_base = true;  // candidates refit the base jointly (it has absorbed part of the effect); it starts from the fit above
-  lo.progress = [&](const std::string& s) { progress("residual: " + s); };
+  lo.progress = [&](const std::string& s) { progress(s); };  // the loop prefixes "residual:" itself
   const residual::LoopResult loop = residual::run_residual_loop(net, fit.params, fit_recs, check_recs, lo);
   fs::create_directories(dir / "residual");
   residual::write_report(loop, check_recs, (dir / "residual").string());
@@ -168,7 +168,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   // --- Reduce the (augmented) model to the firmware's first-order model ----------------------------
   thermal::Network final_net = net;
   Eigen::VectorXd final_params = fit.params;
-  if (loop.chosen >= 0 && loop.candidates[loop.chosen].transient_node < 0) {
+  if (loop.verdict == "effect" && loop.candidates[loop.chosen].transient_node < 0) {
     final_net = loop.candidates[loop.chosen].net;
     final_params = loop.candidates[loop.chosen].values;
   }

@@ -1,8 +1,11 @@
 // Effect library (see effects.hpp).
 #include "host/residual/effects.hpp"
 
+#include <fmt/core.h>
+
 #include <algorithm>
 #include <cmath>
+#include <limits>
 #include <stdexcept>
 
 namespace btsm::residual {
@@ -14,9 +17,9 @@ th::Parameter param(const std::string& name, const std::string& unit, double val
   th::Parameter p;
   p.name = name;
   p.unit = unit;
-  p.initial = value;
+  p.initial = std::clamp(value, lo, hi);
   p.initial_auto = false;
-  p.nominal = value;
+  p.nominal = p.initial;
   p.min = lo;
   p.max = hi;
   p.fixed = fixed;
@@ -25,30 +28,72 @@ th::Parameter param(const std::string& name, const std::string& unit, double val
   return p;
 }
 
-// Adds a parameter and appends its value to `values`.
-int add(AugmentedModel& m, const th::Parameter& p, const std::map<std::string, double>& overrides, bool effect = true) {
-  th::Parameter q = p;
-  const auto it = overrides.find(p.name);
-  if (it != overrides.end()) { q.initial = it->second; q.nominal = it->second; }
-  if (m.net.param_index(q.name) >= 0) throw std::invalid_argument("effect parameter '" + q.name + "' already exists in the network");
-  const int i = m.net.add_parameter(q);
+double value_or(const std::map<std::string, double>& v, const std::string& key, double def) {
+  const auto it = v.find(key);
+  return it == v.end() ? def : it->second;
+}
+
+// Adds a parameter (its value overridden from `values` by name) and appends the value.
+int add(AugmentedModel& m, th::Parameter p, const std::map<std::string, double>& values, bool effect = true) {
+  if (const auto it = values.find(p.name); it != values.end()) {
+    p.initial = std::clamp(it->second, p.min, p.max);
+    p.nominal = p.initial;
+  }
+  if (m.net.param_index(p.name) >= 0) throw std::invalid_argument("effect parameter '" + p.name + "' already exists in the network");
+  const int i = m.net.add_parameter(p);
   m.params.conservativeResize(m.net.param_count());
-  m.params(i) = q.initial;
-  if (effect && !q.fixed) m.effect_params.push_back(q.name);
+  m.params(i) = p.initial;
+  if (effect && !p.fixed) m.effect_params.push_back(p.name);
   return i;
 }
 
-double friction_exponent(const th::Network& net, int node) {
-  double e = -1;
-  for (const auto& s : net.sources)
-    if (s.node == node)
-      for (const auto& t : s.operating) e = std::max(e, t.speed_exponent);
-  return e >= 0 ? e : 1.0;
+int add_node(AugmentedModel& m, const std::string& name, int capacitance_param) {
+  if (m.net.node_index(name) >= 0) throw std::invalid_argument("effect node '" + name + "' already exists in the network");
+  th::Node nd;
+  nd.name = name;
+  nd.capacitance_param = capacitance_param;
+  m.net.nodes.push_back(nd);
+  return m.net.node_count() - 1;
 }
 
-void check_node(const th::Network& net, int node, const char* what) {
-  if (node < 0 || node >= net.node_count()) throw std::invalid_argument(std::string(what) + ": node index out of range");
+th::Term term(int p, th::TermKind kind, double exponent = 0.0) {
+  th::Term t;
+  t.param = p;
+  t.kind = kind;
+  t.speed_exponent = exponent;
+  return t;
 }
+
+void add_link(AugmentedModel& m, const std::string& name, int a, int b, const std::vector<th::Term>& operating,
+              const std::vector<th::Term>& cooling) {
+  th::Link l;
+  l.name = name;
+  l.a = a;
+  l.b = b;
+  l.operating = operating;
+  l.cooling = cooling;
+  m.net.links.push_back(l);
+}
+
+void check_nodes(const th::Network& net, const EffectSpec& e, const char* what) {
+  if (e.nodes.empty()) throw std::invalid_argument(std::string(what) + ": no node given");
+  for (int n : e.nodes)
+    if (n < 0 || n >= net.node_count()) throw std::invalid_argument(std::string(what) + ": node index out of range");
+}
+
+int measurement_of(const th::Network& net, const std::string& column, const char* what) {
+  for (std::size_t i = 0; i < net.measurements.size(); ++i)
+    if (net.measurements[i].column == column) return static_cast<int>(i);
+  throw std::invalid_argument(std::string(what) + ": the network measures no column '" + column + "'");
+}
+
+std::string join(const std::vector<std::string>& v, const char* sep) {
+  std::string s;
+  for (const auto& x : v) s += (s.empty() ? "" : sep) + x;
+  return s;
+}
+
+std::string signed_pct(double v) { return fmt::format("{:+.2g} %", 100 * v); }
 
 }  // namespace
 
@@ -56,41 +101,90 @@ const char* effect_name(EffectKind k) {
   switch (k) {
     case EffectKind::HeatSourceTransient: return "heat_source_transient";
     case EffectKind::TemperatureDependentHeat: return "temperature_dependent_heat";
-    case EffectKind::SensorLag: return "sensor_lag";
-    case EffectKind::AmbientDynamics: return "ambient_dynamics";
+    case EffectKind::CoupledHeat: return "coupled_heat";
     case EffectKind::ExtraHeatInput: return "extra_heat_input";
+    case EffectKind::SensorLag: return "sensor_lag";
+    case EffectKind::SensorDrift: return "sensor_drift";
+    case EffectKind::AmbientDynamics: return "ambient_dynamics";
+    case EffectKind::SecondBoundary: return "second_boundary";
+    case EffectKind::EventConductance: return "event_conductance";
+    case EffectKind::LatentMass: return "latent_mass";
   }
   return "?";
 }
 
 std::vector<EffectKind> all_effect_kinds() {
-  return {EffectKind::HeatSourceTransient, EffectKind::TemperatureDependentHeat, EffectKind::SensorLag,
-          EffectKind::AmbientDynamics, EffectKind::ExtraHeatInput};
+  return {EffectKind::HeatSourceTransient, EffectKind::TemperatureDependentHeat, EffectKind::CoupledHeat,
+          EffectKind::ExtraHeatInput,      EffectKind::SensorLag,                EffectKind::SensorDrift,
+          EffectKind::AmbientDynamics,     EffectKind::SecondBoundary,           EffectKind::EventConductance,
+          EffectKind::LatentMass};
 }
 
 EffectKind parse_effect_kind(const std::string& name) {
-  for (EffectKind k : all_effect_kinds())
+  std::vector<std::string> names;
+  for (EffectKind k : all_effect_kinds()) {
     if (name == effect_name(k)) return k;
-  throw std::invalid_argument("unknown effect '" + name +
-                              "' (known: heat_source_transient, temperature_dependent_heat, sensor_lag, ambient_dynamics, extra_heat_input)");
+    names.push_back(effect_name(k));
+  }
+  throw std::invalid_argument("unknown effect '" + name + "' (known: " + join(names, ", ") + ")");
+}
+
+const char* trigger_name(TransientTrigger t) {
+  return t == TransientTrigger::SpeedIncrease ? "every speed increase (per 1000 rpm)" : "every start or speed change";
 }
 
 std::string effect_label(const EffectSpec& e, const th::Network& net) {
-  std::string s = effect_name(e.kind);
-  if (e.kind == EffectKind::SensorLag) return s + "@" + e.column;
-  if (e.kind == EffectKind::AmbientDynamics) return s;
-  return s + "@" + (e.node >= 0 && e.node < net.node_count() ? net.nodes[e.node].name : std::string("?"));
+  const std::string s = effect_name(e.kind);
+  switch (e.kind) {
+    case EffectKind::SensorLag:
+    case EffectKind::SensorDrift: return s + "@" + e.column;
+    case EffectKind::AmbientDynamics: return s;
+    default: break;
+  }
+  std::vector<std::string> names;
+  for (int n : e.nodes) names.push_back(n >= 0 && n < net.node_count() ? net.nodes[static_cast<std::size_t>(n)].name : "?");
+  return s + "@" + join(names, "+");
 }
 
 std::vector<std::string> effect_nodes(const EffectSpec& e, const th::Network& net) {
-  if (e.kind == EffectKind::AmbientDynamics) {
-    std::vector<std::string> out;
-    for (const auto& l : net.links)
-      if (l.b == th::kAmbient && std::find(out.begin(), out.end(), net.nodes[l.a].name) == out.end()) out.push_back(net.nodes[l.a].name);
-    return out;
+  std::vector<std::string> out;
+  auto push = [&](int n) {
+    if (n < 0 || n >= net.node_count()) return;
+    const std::string& name = net.nodes[static_cast<std::size_t>(n)].name;
+    if (std::find(out.begin(), out.end(), name) == out.end()) out.push_back(name);
+  };
+  switch (e.kind) {
+    case EffectKind::AmbientDynamics:
+      for (const auto& l : net.links)
+        if (l.b == th::kAmbient) push(l.a);
+      return out;
+    case EffectKind::SensorLag:
+    case EffectKind::SensorDrift:
+      for (const auto& m : net.measurements)
+        if (m.column == e.column) push(m.node);
+      return out;
+    default:
+      for (int n : e.nodes) push(n);
+      return out;
   }
-  if (e.node >= 0 && e.node < net.node_count()) return {net.nodes[e.node].name};
-  return {};
+}
+
+double friction_exponent(const th::Network& net, int node) {
+  double e = -1;
+  for (const auto& s : net.sources)
+    if (s.node == node)
+      for (const auto& t : s.operating)
+        if (!t.driven) e = std::max(e, t.speed_exponent);
+  return e >= 0 ? e : 1.0;
+}
+
+double source_heat_at_w0(const th::Network& net, const Eigen::VectorXd& params, int node) {
+  double q = 0;
+  for (const auto& s : net.sources)
+    if (s.node == node)
+      for (const auto& t : s.operating)
+        if (!t.driven && t.event < 0) q += params[t.param];
+  return q;
 }
 
 AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_params, const EffectSpec& e,
@@ -99,156 +193,212 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
   AugmentedModel m;
   m.net = base;
   m.params = base_params;
+  const auto node_name = [&](int n) { return base.nodes[static_cast<std::size_t>(n)].name; };
   switch (e.kind) {
     case EffectKind::HeatSourceTransient: {
-      check_node(base, e.node, "heat_source_transient");
-      const std::string n = base.nodes[e.node].name;
-      double a = 1.0, tau = 600.0;  // start: 1 W per 1000 rpm, 10 min
-      if (auto it = values.find("a_transient_" + n); it != values.end()) a = it->second;
-      if (auto it = values.find("tau_transient_" + n); it != values.end()) tau = it->second;
-      const auto [gt, gta] = transient_conductances(a, tau);
-      const std::string v = "transient_" + n;
-      if (base.node_index(v) >= 0) throw std::invalid_argument("heat_source_transient: node '" + v + "' already exists");
-      const int pc = add(m, param("C_" + v, "J/K", kTransientCapacitance, 1.0, 1e7, true, "capacity of the virtual transient state", true),
+      check_nodes(base, e, "heat_source_transient");
+      const double tau = value_or(values, "tau_transient", e.tau_s > 0 ? e.tau_s : 900.0);
+      m.trigger = e.trigger;
+      const int pc = add(m, param("C_transient", "J/K", kTransientCapacitance, 1.0, 1e7, true,
+                                  "capacity of the virtual transient state (fixed: the impulse scale)", true),
                          values, false);
-      const int pg = add(m, param("g_" + v, "W/K", gt, 1e-9, 1e3, true, "coupling transient state -> " + n + " (operating)"), values);
-      const int pa = add(m, param("g_" + v + "_ambient", "W/K", gta, 1e-6, 1e4, true, "decay path of the transient state"), values);
-      th::Node nd;
-      nd.name = v;
-      nd.capacitance_param = pc;
-      m.net.nodes.push_back(nd);
-      const int vi = m.net.node_count() - 1;
-      th::Term tg;
-      tg.param = pg;
-      tg.kind = th::TermKind::Conductance;
-      th::Link l1;
-      l1.name = "g_" + v;
-      l1.a = e.node;
-      l1.b = vi;
-      l1.operating.push_back(tg);  // no friction heat reaches the bearing at standstill
-      th::Term ta = tg;
-      ta.param = pa;
-      th::Link l2;
-      l2.name = "g_" + v + "_ambient";
-      l2.a = vi;
-      l2.b = th::kAmbient;
-      l2.operating.push_back(ta);
-      l2.cooling.push_back(ta);
-      m.net.links.push_back(l1);
-      m.net.links.push_back(l2);
+      const int v = add_node(m, "transient", pc);
+      double g_sum = 0;
+      for (int n : e.nodes) {
+        const std::string nn = node_name(n);
+        const double ex = e.multiplicative ? friction_exponent(base, n) : 0.0;
+        // amplitude -> coupling: heat right after one trigger unit = g (E/C) at w0
+        double a = value_or(values, "a_transient_" + nn, e.multiplicative ? 0.3 : 2.0);
+        if (e.multiplicative) a *= std::max(source_heat_at_w0(base, base_params, n), 1e-3);
+        const double g = std::max(a, 1e-6) * kTransientCapacitance / kTransientImpulse;
+        g_sum += g;
+        const int pg = add(m, param("g_transient_" + nn, "W/K", g, 1e-10, 1e2, true,
+                                    std::string("coupling transient state -> ") + nn + (e.multiplicative ? " (x friction law)" : "")),
+                           values);
+        add_link(m, "g_transient_" + nn, n, v, {term(pg, th::TermKind::Conductance, ex)}, {});
+        m.key_params.push_back("g_transient_" + nn);
+      }
+      const double g_decay = std::max(kTransientCapacitance / std::max(tau, 1.0) - g_sum, 1e-6);
+      const int pd = add(m, param("g_transient_decay", "W/K", g_decay, 1e-6, 1e4, true, "decay path of the transient state"), values);
+      add_link(m, "g_transient_decay", v, th::kAmbient, {term(pd, th::TermKind::Conductance)}, {term(pd, th::TermKind::Conductance)});
       if (std::isfinite(m.net.sum_capacitance_J_per_K)) m.net.sum_capacitance_J_per_K += kTransientCapacitance;
-      m.transient_node = vi;
-      m.key_param = "g_" + v;
+      m.transient_node = v;
+      m.rest_nodes = {v};
       break;
     }
     case EffectKind::TemperatureDependentHeat: {
-      check_node(base, e.node, "temperature_dependent_heat");
-      const std::string n = base.nodes[e.node].name;
-      // heat = k (w/w0)^e theta  ==  link to ambient with conductance g = -k (w/w0)^e; the
-      // parameter is g itself (negative = heat grows with temperature) so the term stays linear.
-      const int p = add(m, param("g_heat_T_" + n, "W/K at w0", 0.0, -100.0, 100.0, false,
-                                 "minus the growth of the heat at " + n + " per K of its temperature rise (at w0)"),
-                        values);
-      th::Link l;
-      l.name = "heat_T_" + n;
-      l.a = e.node;
-      l.b = th::kAmbient;
-      th::Term t;
-      t.param = p;
-      t.kind = th::TermKind::Conductance;
-      t.speed_exponent = friction_exponent(base, e.node);
-      l.operating.push_back(t);
-      m.net.links.push_back(l);
-      m.key_param = "g_heat_T_" + n;
+      check_nodes(base, e, "temperature_dependent_heat");
+      for (int n : e.nodes) {
+        const std::string nn = node_name(n);
+        const int p = add(m, param("k_heat_T_" + nn, "W/K at w0", 0.0, -1e3, 1e3, false,
+                                   "growth of the heat at " + nn + " per K of its rise (negative: falls)"),
+                          values);
+        th::Source s;
+        s.name = "heat_T_" + nn;
+        s.node = n;
+        th::Term t = term(p, th::TermKind::Power, friction_exponent(base, n));
+        t.driven = true;
+        t.hot = n;
+        t.cold = th::kAmbient;
+        s.operating.push_back(t);
+        m.net.sources.push_back(s);
+        m.key_params.push_back("k_heat_T_" + nn);
+      }
+      break;
+    }
+    case EffectKind::CoupledHeat: {
+      check_nodes(base, e, "coupled_heat");
+      if (e.hot < 0 || e.cold < 0 || e.hot >= base.node_count() || e.cold >= base.node_count() || e.hot == e.cold)
+        throw std::invalid_argument("coupled_heat: needs two different driving nodes");
+      for (int n : e.nodes) {
+        const std::string nn = node_name(n);
+        const int p = add(m, param("k_couple_" + nn, "W/K at w0", 0.0, -1e3, 1e3, false,
+                                   "heat at " + nn + " per K of " + node_name(e.hot) + " - " + node_name(e.cold)),
+                          values);
+        th::Source s;
+        s.name = "coupled_" + nn;
+        s.node = n;
+        th::Term t = term(p, th::TermKind::Power, e.speed_exponent);
+        t.driven = true;
+        t.hot = e.hot;
+        t.cold = e.cold;
+        s.operating.push_back(t);
+        m.net.sources.push_back(s);
+        m.key_params.push_back("k_couple_" + nn);
+      }
+      break;
+    }
+    case EffectKind::ExtraHeatInput: {
+      check_nodes(base, e, "extra_heat_input");
+      for (int n : e.nodes) {
+        const std::string nn = node_name(n);
+        const int p = add(m, param("q_extra_" + nn, "W at w0", 0.0, -1e4, 1e4, false,
+                                   fmt::format("unmodelled heat at {} while running, x (w/w0)^{:g}", nn, e.speed_exponent)),
+                          values);
+        th::Source s;
+        s.name = "extra_" + nn;
+        s.node = n;
+        s.operating.push_back(term(p, th::TermKind::Power, e.speed_exponent));
+        m.net.sources.push_back(s);
+        m.key_params.push_back("q_extra_" + nn);
+      }
       break;
     }
     case EffectKind::SensorLag: {
-      int mi = -1;
-      for (size_t i = 0; i < base.measurements.size(); ++i)
-        if (base.measurements[i].column == e.column) mi = static_cast<int>(i);
-      if (mi < 0) throw std::invalid_argument("sensor_lag: the network measures no column '" + e.column + "'");
-      const int node = base.measurements[mi].node;
+      const int mi = measurement_of(base, e.column, "sensor_lag");
+      const int node = base.measurements[static_cast<std::size_t>(mi)].node;
       const std::string probe = "probe_" + e.column;
-      if (base.node_index(probe) >= 0) throw std::invalid_argument("sensor_lag: node '" + probe + "' already exists");
-      const int pc = add(m, param("C_" + probe, "J/K", 1.0, 0.5, 2.0, true, "nominal heat capacity of the probe model", true), values, false);
-      // With C = 1 J/K the resistance in K/W equals the time constant in s.
-      const int pr = add(m, param("tau_" + probe, "s (= K/W at C 1 J/K)", 60.0, 0.01, 1e5, true,
-                                  "time constant of the probe of " + e.column),
+      const int pc = add(m, param("C_" + probe, "J/K", kProbeCapacitance, 0.5, 2.0, true, "nominal heat capacity of the probe model", true),
+                         values, false);
+      const int pr = add(m, param("tau_" + probe, "s", e.tau_s > 0 ? e.tau_s : 60.0, 0.01, 1e5, true,
+                                  "time constant of the probe of " + e.column + " (R in K/W at C = 1 J/K)"),
                          values);
-      th::Node nd;
-      nd.name = probe;
-      nd.capacitance_param = pc;
-      m.net.nodes.push_back(nd);
-      th::Link l;
-      l.name = "R_" + probe;
-      l.a = node;
-      l.b = m.net.node_count() - 1;
-      th::Term t;
-      t.param = pr;
-      t.kind = th::TermKind::Resistance;
-      l.operating.push_back(t);
-      l.cooling.push_back(t);
-      m.net.links.push_back(l);
-      m.net.measurements[mi].node = m.net.node_count() - 1;
-      // the probe node adds 1 J/K to the sum of capacitances the gauge uses
-      if (std::isfinite(m.net.sum_capacitance_J_per_K)) m.net.sum_capacitance_J_per_K += 1.0;
-      m.key_param = "tau_" + probe;
+      const int v = add_node(m, probe, pc);
+      add_link(m, "R_" + probe, node, v, {term(pr, th::TermKind::Resistance)}, {term(pr, th::TermKind::Resistance)});
+      m.net.measurements[static_cast<std::size_t>(mi)].node = v;
+      if (std::isfinite(m.net.sum_capacitance_J_per_K)) m.net.sum_capacitance_J_per_K += kProbeCapacitance;
+      m.key_params.push_back("tau_" + probe);
+      break;
+    }
+    case EffectKind::SensorDrift: {
+      const int mi = measurement_of(base, e.column, "sensor_drift");
+      if (base.measurements[static_cast<std::size_t>(mi)].drift_param >= 0)
+        throw std::invalid_argument("sensor_drift: column '" + e.column + "' drifts already");
+      const int p = add(m, param("d_" + e.column, "K/h", 0.0, -10.0, 10.0, false,
+                                 "drift of the probe of " + e.column + " since the recording's first sample"),
+                        values);
+      m.net.measurements[static_cast<std::size_t>(mi)].drift_param = p;
+      m.key_params.push_back("d_" + e.column);
       break;
     }
     case EffectKind::AmbientDynamics: {
       if (base.node_index("ambient_lag") >= 0) throw std::invalid_argument("ambient_dynamics: node 'ambient_lag' already exists");
-      double g_amb = 0;  // total conductance to ambient at the reference speed, for a start value
       const th::NodeMatrices nm = th::assemble(base, base_params, base.speed_ref_rpm);
-      g_amb = nm.ambient_conductance.sum();
-      double sum_c = 0;
-      for (const auto& nd : base.nodes) sum_c += base_params(nd.capacitance_param);
-      const int pc = add(m, param("C_ambient_lag", "J/K", 0.5 * sum_c, 1.0, 1e9, true,
+      const double g_amb = std::max(nm.ambient_conductance.sum(), 1e-3);
+      const double tau = e.tau_s > 0 ? e.tau_s : 1800.0;
+      // a lag that the machine's own heat barely warms: g well above the machine's conductance
+      const double g = value_or(values, "g_ambient_lag", 20.0 * g_amb);
+      const int pc = add(m, param("C_ambient_lag", "J/K", value_or(values, "C_ambient_lag", g * tau), 1.0, 1e10, true,
                                   "heat capacity of the air/structure between the machine and the measured ambient"),
                          values);
-      const int pg = add(m, param("g_ambient_lag", "W/K", 4.0 * std::max(g_amb, 1e-3), 1e-4, 1e6, true,
-                                  "conductance from that lagged ambient to the measured ambient"),
+      const int pg = add(m, param("g_ambient_lag", "W/K", g, 1e-4, 1e7, true, "conductance from that lagged ambient to the measured ambient"),
                          values);
-      th::Node nd;
-      nd.name = "ambient_lag";
-      nd.capacitance_param = pc;
-      m.net.nodes.push_back(nd);
-      const int v = m.net.node_count() - 1;
+      const int v = add_node(m, "ambient_lag", pc);
       for (auto& l : m.net.links)
         if (l.b == th::kAmbient) l.b = v;
-      th::Link l;
-      l.name = "g_ambient_lag";
-      l.a = v;
-      l.b = th::kAmbient;
-      th::Term t;
-      t.param = pg;
-      t.kind = th::TermKind::Conductance;
-      l.operating.push_back(t);
-      l.cooling.push_back(t);
-      m.net.links.push_back(l);
-      // the gauge (if any) is the sum over the ORIGINAL nodes; the caller holds a base capacitance
-      m.net.sum_capacitance_J_per_K = std::numeric_limits<double>::quiet_NaN();
-      m.key_param = "C_ambient_lag";
+      for (auto& s : m.net.sources)
+        for (auto* ts : {&s.operating, &s.cooling})
+          for (auto& t : *ts)
+            if (t.driven) {
+              if (t.hot == th::kAmbient) t.hot = v;
+              if (t.cold == th::kAmbient) t.cold = v;
+            }
+      add_link(m, "g_ambient_lag", v, th::kAmbient, {term(pg, th::TermKind::Conductance)}, {term(pg, th::TermKind::Conductance)});
+      m.net.sum_capacitance_J_per_K = std::numeric_limits<double>::quiet_NaN();  // the caller holds a base capacitance
+      m.key_params = {"C_ambient_lag"};
+      m.adds_free_capacitance = true;
       break;
     }
-    case EffectKind::ExtraHeatInput: {
-      check_node(base, e.node, "extra_heat_input");
-      const std::string n = base.nodes[e.node].name;
-      const int p0 = add(m, param("q_extra_" + n, "W", 0.0, -1e4, 1e4, false, "unmodelled constant heat at " + n + " while running"), values);
-      const int p1 = add(m, param("q_extra_speed_" + n, "W at w0", 0.0, -1e4, 1e4, false,
-                                  "unmodelled speed-proportional heat at " + n + " (x w/w0)"),
-                         values);
-      th::Source s;
-      s.name = "extra_" + n;
-      s.node = e.node;
-      th::Term t0;
-      t0.param = p0;
-      t0.kind = th::TermKind::Power;
-      th::Term t1 = t0;
-      t1.param = p1;
-      t1.speed_exponent = 1.0;
-      s.operating = {t0, t1};
-      m.net.sources.push_back(s);
-      m.key_param = "q_extra_" + n;
+    case EffectKind::SecondBoundary: {
+      check_nodes(base, e, "second_boundary");
+      if (e.column.empty()) throw std::invalid_argument("second_boundary: no boundary column given");
+      int b = -1;
+      for (std::size_t k = 0; k < m.net.boundaries.size(); ++k)
+        if (m.net.boundaries[k] == e.column) b = static_cast<int>(k);
+      if (b < 0) {
+        m.net.boundaries.push_back(e.column);
+        b = static_cast<int>(m.net.boundaries.size()) - 1;
+      }
+      for (int n : e.nodes) {
+        const std::string nn = node_name(n);
+        const int p = add(m, param("g_" + e.column + "_" + nn, "W/K", 0.5, 1e-6, 1e4, true,
+                                   "conductance " + nn + " - boundary column " + e.column),
+                          values);
+        add_link(m, e.column + "_" + nn, n, th::boundary_end(b), {term(p, th::TermKind::Conductance)},
+                 {term(p, th::TermKind::Conductance)});
+        m.key_params.push_back("g_" + e.column + "_" + nn);
+      }
+      break;
+    }
+    case EffectKind::EventConductance: {
+      check_nodes(base, e, "event_conductance");
+      if (e.column.empty()) throw std::invalid_argument("event_conductance: no event column given");
+      int ev = -1;
+      for (std::size_t k = 0; k < m.net.events.size(); ++k)
+        if (m.net.events[k] == e.column) ev = static_cast<int>(k);
+      if (ev < 0) {
+        m.net.events.push_back(e.column);
+        ev = static_cast<int>(m.net.events.size()) - 1;
+      }
+      for (int n : e.nodes) {
+        const std::string nn = node_name(n);
+        const int p = add(m, param("g_" + e.column + "_" + nn, "W/K", 0.5, 1e-6, 1e4, true,
+                                   "conductance " + nn + " - ambient while " + e.column + " is 1"),
+                          values);
+        th::Term t = term(p, th::TermKind::Conductance);
+        t.event = ev;
+        add_link(m, e.column + "_" + nn, n, th::kAmbient, {t}, {t});
+        m.key_params.push_back("g_" + e.column + "_" + nn);
+      }
+      break;
+    }
+    case EffectKind::LatentMass: {
+      check_nodes(base, e, "latent_mass");
+      for (int n : e.nodes) {
+        const std::string nn = node_name(n);
+        const double tau = e.tau_s > 0 ? e.tau_s : 1800.0;
+        const double g = value_or(values, "g_latent_" + nn, 2.0);
+        const int pc = add(m, param("C_latent_" + nn, "J/K", value_or(values, "C_latent_" + nn, g * tau), 1.0, 1e9, true,
+                                    "missing heat capacity tied to " + nn),
+                           values);
+        const int pg = add(m, param("g_latent_" + nn, "W/K", g, 1e-4, 1e5, true, "conductance " + nn + " - its missing mass"), values);
+        const int v = add_node(m, "latent_" + nn, pc);
+        add_link(m, "g_latent_" + nn, n, v, {term(pg, th::TermKind::Conductance)}, {term(pg, th::TermKind::Conductance)});
+        m.key_params.push_back("g_latent_" + nn);
+        m.key_params.push_back("C_latent_" + nn);
+      }
+      m.net.sum_capacitance_J_per_K = std::numeric_limits<double>::quiet_NaN();  // the caller holds a base capacitance
+      m.adds_free_capacitance = true;
       break;
     }
   }
@@ -256,36 +406,134 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
   return m;
 }
 
-std::pair<double, double> transient_conductances(double amplitude_w_per_krpm, double tau_s) {
-  if (!(tau_s > 0) || !(amplitude_w_per_krpm > 0)) throw std::invalid_argument("heat_source_transient: amplitude and tau must be > 0");
-  const double gt = amplitude_w_per_krpm * kTransientCapacitance / kTransientImpulse;
-  const double total = kTransientCapacitance / tau_s;
-  if (!(total > gt)) throw std::invalid_argument("heat_source_transient: amplitude x tau exceeds the impulse energy scale");
-  return {gt, total - gt};
-}
-
-TransientValues transient_values(double gt, double gta, double var_gt, double var_gta, double cov) {
-  TransientValues v;
-  v.amplitude_w_per_krpm = kTransientImpulse * gt / kTransientCapacitance;
-  v.amplitude_sigma = kTransientImpulse * std::sqrt(std::max(var_gt, 0.0)) / kTransientCapacitance;
-  const double s = gt + gta;
-  v.tau_s = kTransientCapacitance / s;
-  v.tau_sigma = kTransientCapacitance / (s * s) * std::sqrt(std::max(var_gt + var_gta + 2 * cov, 0.0));
-  return v;
-}
-
-Eigen::MatrixXd transient_impulses_w(const th::Network& net, const th::Recording& rec, int node) {
-  check_node(net, node, "heat_source_transient");
-  const Eigen::Index rows = static_cast<Eigen::Index>(rec.rows());
-  Eigen::MatrixXd q = Eigen::MatrixXd::Zero(rows, net.node_count());
-  double prev = 0;
-  for (Eigen::Index k = 0; k + 1 < rows; ++k) {
+std::vector<double> transient_triggers(const th::Network& net, const th::Recording& rec, TransientTrigger trigger) {
+  std::vector<double> u(rec.rows(), 0.0);
+  double prev = 0;  // a recording starts from standstill
+  for (std::size_t k = 0; k < rec.rows(); ++k) {
     const double w = rec.speed_rpm[k];
-    const double inc = std::max(0.0, w - prev);
+    const bool running = net.mode_at(w) == th::Mode::Operating;
+    if (running && w != prev) {
+      if (trigger == TransientTrigger::SpeedIncrease) u[k] = std::max(0.0, w - (net.mode_at(prev) == th::Mode::Operating ? prev : 0.0)) / 1000.0;
+      else u[k] = 1.0;
+    }
     prev = w;
-    if (inc > 0 && net.mode_at(w) == th::Mode::Operating) q(k, node) = kTransientImpulse * inc / 1000.0 / (rec.time_s[k + 1] - rec.time_s[k]);
   }
+  return u;
+}
+
+Eigen::MatrixXd transient_impulses_w(const th::Network& net, const th::Recording& rec, int node, TransientTrigger trigger) {
+  if (node < 0 || node >= net.node_count()) throw std::invalid_argument("heat_source_transient: node index out of range");
+  const std::vector<double> u = transient_triggers(net, rec, trigger);
+  const auto rows = static_cast<Eigen::Index>(rec.rows());
+  Eigen::MatrixXd q = Eigen::MatrixXd::Zero(rows, net.node_count());
+  for (Eigen::Index k = 0; k + 1 < rows; ++k)
+    if (u[static_cast<std::size_t>(k)] > 0)
+      q(k, node) = kTransientImpulse * u[static_cast<std::size_t>(k)] / (rec.time_s[static_cast<std::size_t>(k) + 1] - rec.time_s[static_cast<std::size_t>(k)]);
   return q;
+}
+
+std::vector<EffectQuantity> effect_quantities(const AugmentedModel& m, const EffectSpec& e, const th::Network& base,
+                                              const Eigen::VectorXd& v, const Eigen::MatrixXd& cov) {
+  std::vector<EffectQuantity> out;
+  const auto idx = [&](const std::string& name) { return m.net.param_index(name); };
+  const auto var = [&](int i) { return i >= 0 && i < cov.rows() ? std::max(cov(i, i), 0.0) : 0.0; };
+  const auto sd = [&](int i) { return std::sqrt(var(i)); };
+  const auto node_name = [&](int n) { return base.nodes[static_cast<std::size_t>(n)].name; };
+  switch (e.kind) {
+    case EffectKind::HeatSourceTransient: {
+      const int id = idx("g_transient_decay");
+      double s = v[id], s_var = var(id);
+      for (int n : e.nodes) {
+        const int ig = idx("g_transient_" + node_name(n));
+        s += v[ig];
+        s_var += var(ig) + 2 * (id < cov.rows() && ig < cov.rows() ? cov(id, ig) : 0.0);
+      }
+      const double tau = kTransientCapacitance / s;
+      out.push_back({"tau_transient", "s", tau, kTransientCapacitance / (s * s) * std::sqrt(std::max(s_var, 0.0)),
+                     fmt::format("the extra heat decays with {:.0f} min after {}", tau / 60, trigger_name(e.trigger))});
+      for (int n : e.nodes) {
+        const int ig = idx("g_transient_" + node_name(n));
+        const double a = v[ig] * kTransientImpulse / kTransientCapacitance, as = sd(ig) * kTransientImpulse / kTransientCapacitance;
+        if (e.multiplicative) {
+          const double q0 = source_heat_at_w0(base, v.head(base.param_count()), n);
+          const double share = q0 > 0 ? a / q0 : std::numeric_limits<double>::quiet_NaN();
+          out.push_back({"a_transient_" + node_name(n), "W at w0", a, as,
+                         fmt::format("{} of the {} friction heat right after {}", signed_pct(share), node_name(n),
+                                     e.trigger == TransientTrigger::SpeedIncrease ? "each 1000 rpm of increase" : "each start or speed change")});
+        } else {
+          out.push_back({"a_transient_" + node_name(n), e.trigger == TransientTrigger::SpeedIncrease ? "W per 1000 rpm of increase" : "W per start/change",
+                         a, as, fmt::format("{:+.3g} W at {} right after {}", a, node_name(n), trigger_name(e.trigger))});
+        }
+      }
+      break;
+    }
+    case EffectKind::TemperatureDependentHeat:
+      for (int n : e.nodes) {
+        const int i = idx("k_heat_T_" + node_name(n));
+        const double q0 = source_heat_at_w0(base, v.head(base.param_count()), n);
+        std::string meaning = fmt::format("{:+.3g} W per K of the {} rise at w0", v[i], node_name(n));
+        if (q0 > 0) meaning = fmt::format("{} of the {} heat per K ({:+.3g} W/K at w0): heat {} with temperature", signed_pct(v[i] / q0),
+                                          node_name(n), v[i], v[i] >= 0 ? "grows" : "falls");
+        out.push_back({"heat_per_K_" + node_name(n), "W/K at w0", v[i], sd(i), meaning});
+      }
+      break;
+    case EffectKind::CoupledHeat:
+      for (int n : e.nodes) {
+        const int i = idx("k_couple_" + node_name(n));
+        out.push_back({"coupled_heat_" + node_name(n), "W/K at w0", v[i], sd(i),
+                       fmt::format("{:+.3g} W at {} per K of {} - {} (x (w/w0)^{:g})", v[i], node_name(n), node_name(e.hot),
+                                   node_name(e.cold), e.speed_exponent)});
+      }
+      break;
+    case EffectKind::ExtraHeatInput:
+      for (int n : e.nodes) {
+        const int i = idx("q_extra_" + node_name(n));
+        out.push_back({"extra_heat_" + node_name(n), "W at w0", v[i], sd(i),
+                       fmt::format("{:+.3g} W at {} at w0 while running, x (w/w0)^{:g}", v[i], node_name(n), e.speed_exponent)});
+      }
+      break;
+    case EffectKind::SensorLag: {
+      const int i = idx("tau_probe_" + e.column);
+      out.push_back({"tau_probe_" + e.column, "s", v[i], sd(i), fmt::format("the probe of {} lags its node by {:.3g} s", e.column, v[i])});
+      break;
+    }
+    case EffectKind::SensorDrift: {
+      const int i = idx("d_" + e.column);
+      out.push_back({"drift_" + e.column, "K/h", v[i], sd(i),
+                     fmt::format("the probe of {} reads {:+.3g} K per hour of recording too {}", e.column, v[i], v[i] >= 0 ? "high" : "low")});
+      break;
+    }
+    case EffectKind::AmbientDynamics: {
+      const int ic = idx("C_ambient_lag"), ig = idx("g_ambient_lag");
+      const double tau = v[ic] / v[ig];
+      const double rel = std::sqrt(var(ic) / (v[ic] * v[ic]) + var(ig) / (v[ig] * v[ig]) -
+                                   2 * (ic < cov.rows() && ig < cov.rows() ? cov(ic, ig) : 0.0) / (v[ic] * v[ig]));
+      out.push_back({"tau_ambient_lag", "s", tau, tau * (std::isfinite(rel) ? rel : 0.0),
+                     fmt::format("the air around the machine follows the measured ambient with {:.0f} min", tau / 60)});
+      out.push_back({"C_ambient_lag", "J/K", v[ic], sd(ic), "heat capacity of that air/structure"});
+      out.push_back({"g_ambient_lag", "W/K", v[ig], sd(ig), "its conductance to the measured ambient"});
+      break;
+    }
+    case EffectKind::SecondBoundary:
+    case EffectKind::EventConductance:
+      for (int n : e.nodes) {
+        const int i = idx("g_" + e.column + "_" + node_name(n));
+        out.push_back({"g_" + e.column + "_" + node_name(n), "W/K", v[i], sd(i),
+                       e.kind == EffectKind::SecondBoundary
+                           ? fmt::format("{:.3g} W/K between {} and the boundary column {}", v[i], node_name(n), e.column)
+                           : fmt::format("{:.3g} W/K more from {} to ambient while {} is 1", v[i], node_name(n), e.column)});
+      }
+      break;
+    case EffectKind::LatentMass:
+      for (int n : e.nodes) {
+        const int ic = idx("C_latent_" + node_name(n)), ig = idx("g_latent_" + node_name(n));
+        out.push_back({"C_latent_" + node_name(n), "J/K", v[ic], sd(ic), fmt::format("a missing mass of {:.3g} J/K at {}", v[ic], node_name(n))});
+        out.push_back({"g_latent_" + node_name(n), "W/K", v[ig], sd(ig),
+                       fmt::format("tied by {:.3g} W/K (time constant {:.0f} min)", v[ig], v[ic] / v[ig] / 60)});
+      }
+      break;
+  }
+  return out;
 }
 
 }  // namespace btsm::residual

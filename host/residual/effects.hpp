@@ -1,30 +1,40 @@
 #pragma once
-// The effect library of the residual loop: physically meaningful additions to a thermal network,
-// each with few parameters, expressed in the ONE network description and simulated by the ONE
-// simulator (host/thermal). Every effect keeps the model linear and exactly simulable:
+// The effect library of the residual loop: physical additions to a thermal network, each with few
+// parameters, expressed in the ONE network description (host/thermal/network.hpp) and simulated by
+// the ONE simulator, so an effect is fitted jointly with the base parameters by the ordinary fit.
 //
-//   heat_source_transient@n      heat at node n that jumps after each speed increase and decays:
-//                                Q(t) ~ a * sum_i (dw_i+ / 1000 rpm) exp(-(t - t_i)/tau)
-//                                [a W per 1000 rpm of increase, tau s]. Realised as a first-order
-//                                state: a virtual node "transient_<n>" (C = 1000 J/K, fixed) that
-//                                receives a known energy impulse E_ref = 1 MJ per 1000 rpm at every
-//                                speed increase (the simulator's extra-heat input, over one sample)
-//                                and passes heat to n through g_t (operating mode only) and to
-//                                ambient through g_ta: a = E_ref g_t / C, tau = C / (g_t + g_ta).
-//                                Because E_ref is large, the side effects of the tiny coupling
-//                                (g_t ~ 1e-3 W/K) on n are negligible; both g are fitted jointly
-//                                with the base model.
-//   temperature_dependent_heat@n heat at node n grows with its temperature rise while running:
-//                                Q = k (w/w0)^e (T_n - T_amb), e = the node's friction-law exponent.
-//                                Linear in T: a link to ambient of conductance -k (w/w0)^e.
-//   sensor_lag@column            the probe of `column` lags its node with time constant tau: an
-//                                extra node "probe_<column>" (C = 1 J/K, fixed) tied to the node
-//                                by R = tau / C; the column then measures the probe node.
-//   ambient_dynamics             the air/structure around the machine is not at the measured
-//                                ambient but follows it through a lag: every ambient link is moved
-//                                to an extra node "ambient_lag" (C_amb_lag) that is tied to the
-//                                measured ambient by g_amb_lag.
-//   extra_heat_input@n           unmodelled heat at node n while running: q0 + q1 (w/w0).
+//   heat_source_transient   heat after each start-up or speed change that decays with tau, at one
+//                           node or several with one shared decay. A virtual node "transient"
+//                           (C = 1000 J/K, fixed) receives a known energy impulse at each trigger
+//                           (the fit's extra-heat input) and hands heat to each node n through
+//                           g_transient_<n> (operating mode only), decaying to ambient through
+//                           g_transient_decay: tau = C / (sum g). Triggers: every speed increase
+//                           (1 MJ per 1000 rpm of increase, a start counts from 0) or every start or
+//                           speed change (1 MJ each). Additive: the coupling is speed independent;
+//                           multiplicative: it follows the node's friction law (w/w0)^e, so the
+//                           extra heat is a share of that node's friction heat.
+//   temperature_dependent_heat  heat at a node that grows (k > 0) or falls (k < 0) with its rise:
+//                           k_heat_T_<n> (w/w0)^e (T_n - T_amb) W, e = the node's friction exponent
+//                           (a source term driven by [n, ambient]).
+//   coupled_heat            heat at node n driven by the difference of two nodes:
+//                           k_couple_<n> (w/w0)^e (T_hot - T_cold) W while running (thermally
+//                           induced preload: the hotter a bearing runs against its housing, the
+//                           more it heats). A source term driven by [hot, cold].
+//   extra_heat_input        unmodelled speed-driven heat at any node, with or without a probe:
+//                           q_extra_<n> (w/w0)^e W while running, e = 0, 1 or 2.
+//   sensor_lag              the probe of a column lags its node: a probe node (C = 1 J/K, fixed)
+//                           tied to the node by R = tau; the column measures the probe node.
+//   sensor_drift            the probe of a column drifts: d_<column> K/h x hours since the
+//                           recording's first sample (a drifting measurement, network.hpp).
+//   ambient_dynamics        the air/structure around the machine is not at the measured ambient:
+//                           every ambient link moves to a node "ambient_lag" (C_ambient_lag) tied
+//                           to the measured ambient by g_ambient_lag.
+//   second_boundary         a declared boundary column (coolant, chiller water) exchanges heat with
+//                           one node or several: g_<column>_<n> W/K each.
+//   event_conductance       while a declared 0/1 event column is 1 (a cover or lid open), one node
+//                           or several lose heat to ambient through g_<column>_<n> W/K each.
+//   latent_mass             a missing thermal mass: an unmeasured node "latent_<n>" (C_latent_<n>)
+//                           tied to node n by g_latent_<n>.
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
 
@@ -36,53 +46,89 @@
 
 namespace btsm::residual {
 
-enum class EffectKind { HeatSourceTransient, TemperatureDependentHeat, SensorLag, AmbientDynamics, ExtraHeatInput };
+enum class EffectKind {
+  HeatSourceTransient,
+  TemperatureDependentHeat,
+  CoupledHeat,
+  ExtraHeatInput,
+  SensorLag,
+  SensorDrift,
+  AmbientDynamics,
+  SecondBoundary,
+  EventConductance,
+  LatentMass,
+};
 const char* effect_name(EffectKind k);
 EffectKind parse_effect_kind(const std::string& name);  // throws std::invalid_argument listing the names
 std::vector<EffectKind> all_effect_kinds();
 
+enum class TransientTrigger { SpeedIncrease, StartOrChange };
+const char* trigger_name(TransientTrigger t);
+
 struct EffectSpec {
   EffectKind kind = EffectKind::ExtraHeatInput;
-  int node = -1;         // heat effects; for sensor_lag the node of the column
-  std::string column;    // sensor_lag only
+  std::vector<int> nodes;          // nodes acted on (node indices of the base network)
+  std::string column;              // sensor_lag / sensor_drift: the measured column; second_boundary /
+                                   // event_conductance: the declared column
+  int hot = -1, cold = -1;         // coupled_heat: the driving pair (node indices)
+  TransientTrigger trigger = TransientTrigger::SpeedIncrease;  // heat_source_transient
+  bool multiplicative = false;     // heat_source_transient: coupling follows the node's friction law
+  double speed_exponent = 1.0;     // extra_heat_input, coupled_heat: (w/w0)^e
+  double tau_s = 0;                // start of the family's time constant [s]; 0 = the family's default
 };
-// "extra_heat_input@housing", "sensor_lag@T1", "ambient_dynamics"
+
+// "heat_source_transient@rear_bearing+front_bearing", "sensor_lag@T1", "coupled_heat@front_bearing",
+// "second_boundary@housing", "ambient_dynamics".
 std::string effect_label(const EffectSpec& e, const thermal::Network& net);
-// The nodes an effect acts on (names), for reports.
+// Names of the nodes an effect acts on (ambient_dynamics: every node linked to ambient; sensor
+// families: the node the column measures).
 std::vector<std::string> effect_nodes(const EffectSpec& e, const thermal::Network& net);
 
 constexpr double kTransientCapacitance = 1000.0;   // J/K of the virtual transient node
-constexpr double kTransientImpulse = 1.0e6;        // J per 1000 rpm of speed increase
+constexpr double kTransientImpulse = 1.0e6;        // J per trigger unit (1000 rpm of increase, or one start/change)
+constexpr double kProbeCapacitance = 1.0;          // J/K of a sensor_lag probe node (R in K/W = tau in s)
 
 // Base network plus one effect.
 struct AugmentedModel {
   thermal::Network net;
-  Eigen::VectorXd params;                  // base values + effect values (starts or truth)
-  std::vector<std::string> effect_params;  // names of the effect's network parameters
-  std::string key_param;                   // the parameter whose significance shows the effect exists
-  int transient_node = -1;                 // heat_source_transient: index of the virtual node fed by
-                                           // transient_impulses_w(); -1 for the other effects
+  Eigen::VectorXd params;                  // base values + effect values (starts, or a truth)
+  std::vector<std::string> effect_params;  // the effect's free network parameters
+  std::vector<std::string> key_params;     // those whose significance shows the effect exists
+  int transient_node = -1;                 // heat_source_transient: the virtual node fed by transient_impulses_w()
+  std::vector<int> rest_nodes;             // start every recording at the ambient (the transient state: at rest)
+  TransientTrigger trigger = TransientTrigger::SpeedIncrease;
+  bool adds_free_capacitance = false;      // ambient_dynamics, latent_mass: the caller fixes the gauge otherwise
 };
 
-// Converts a transient amplitude [W per 1000 rpm] and time constant [s] to the two conductances
-// (g_t, g_ta) of the virtual node, and back (with 1-sigma from their covariance).
-std::pair<double, double> transient_conductances(double amplitude_w_per_krpm, double tau_s);
-struct TransientValues {
-  double amplitude_w_per_krpm = 0, amplitude_sigma = 0, tau_s = 0, tau_sigma = 0;
-};
-TransientValues transient_values(double g_t, double g_ta, double var_gt, double var_gta, double cov);
-
-// Builds base + effect. `values` overrides effect parameter values by name (e.g. to make a "truth"
-// for tests, or start values); the defaults are neutral-ish starts for fitting. For
-// heat_source_transient the keys "a_transient_<node>" [W per 1000 rpm] and "tau_transient_<node>" [s]
-// are accepted too and converted to the conductances.
-// Throws std::invalid_argument if the node/column does not exist or the effect is already present.
+// Builds base + effect. `values` overrides effect parameter values by network name (starts, or a
+// truth for tests); heat_source_transient also takes "tau_transient" [s] and
+// "a_transient_<node>" (W per trigger unit for an additive coupling, a fraction of the node's
+// friction heat at w0 for a multiplicative one). Throws std::invalid_argument if a node or column
+// does not exist, the effect is already present, or the family needs what the network lacks.
 AugmentedModel augment(const thermal::Network& base, const Eigen::VectorXd& base_params, const EffectSpec& e,
                        const std::map<std::string, double>& values = {});
 
-// Known extra heat (rows x nodes, W) that drives the virtual transient node `node`: E_ref per 1000
-// rpm of each speed increase, delivered over the sample interval in which the speed rises (a
-// recording is taken to start from standstill).
-Eigen::MatrixXd transient_impulses_w(const thermal::Network& net, const thermal::Recording& rec, int node);
+// Known extra heat (rows x nodes, W) that drives the virtual transient node: kTransientImpulse per
+// trigger unit, delivered over the sample interval in which the trigger happens (a recording is
+// taken to start from standstill).
+Eigen::MatrixXd transient_impulses_w(const thermal::Network& net, const thermal::Recording& rec, int node, TransientTrigger trigger);
+// The trigger units of one recording per row (what the impulses are made of).
+std::vector<double> transient_triggers(const thermal::Network& net, const thermal::Recording& rec, TransientTrigger trigger);
+
+// The friction-law exponent of a node's own heat sources (the largest), 1 when it has none.
+double friction_exponent(const thermal::Network& net, int node);
+// The node's own source heat at w0 [W] (0 when it has none).
+double source_heat_at_w0(const thermal::Network& net, const Eigen::VectorXd& params, int node);
+
+// One physical quantity of a fitted effect, with its sign, in the user's terms.
+struct EffectQuantity {
+  std::string name;          // e.g. "heat_per_K_rear_bearing"
+  std::string unit;          // e.g. "W/K at w0"
+  double value = 0, sigma = 0;
+  std::string meaning;       // e.g. "+1.2 % of the rear_bearing heat per K (heat grows with temperature)"
+};
+// The effect's parameters as physical quantities (covariance over the network's parameters).
+std::vector<EffectQuantity> effect_quantities(const AugmentedModel& m, const EffectSpec& e, const thermal::Network& base,
+                                              const Eigen::VectorXd& values, const Eigen::MatrixXd& covariance);
 
 }  // namespace btsm::residual

@@ -1,12 +1,14 @@
-// The closed residual loop (see residual_loop.hpp).
+// The closed residual loop (see residual_loop.hpp): one named function per stage.
 #include "host/residual/residual_loop.hpp"
 
+#include "host/residual/candidate_fit.hpp"
+#include "host/residual/residual_tests.hpp"
+#include "host/thermal/column_map.hpp"
+#include "host/thermal/declared_columns.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/simulator.hpp"
 
 #include <fmt/core.h>
-
-#include <Eigen/Dense>
 
 #include <algorithm>
 #include <chrono>
@@ -19,637 +21,523 @@ namespace btsm::residual {
 namespace th = btsm::thermal;
 namespace {
 
-constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
-constexpr int kGap = 30;  // NaN rows between concatenated recordings so no lag crosses them
-
-void say(const LoopOptions& o, const std::string& s) {
-  if (o.progress) o.progress(s);
-}
-
-std::vector<double> concat_column(const std::vector<Eigen::MatrixXd>& mats, int col) {
-  std::vector<double> v;
-  for (const auto& m : mats) {
-    if (!v.empty()) v.insert(v.end(), kGap, kNaN);
-    for (Eigen::Index k = 0; k < m.rows(); ++k) v.push_back(m(k, col));
-  }
-  return v;
-}
-
-std::vector<double> concat_signal(const std::vector<std::vector<double>>& parts) {
-  std::vector<double> v;
-  for (const auto& p : parts) {
-    if (!v.empty()) v.insert(v.end(), kGap, kNaN);
-    v.insert(v.end(), p.begin(), p.end());
-  }
-  return v;
-}
-
-double rss_of(const std::vector<Eigen::MatrixXd>& r, std::size_t& n) {
-  double s = 0;
-  n = 0;
-  for (const auto& m : r)
-    for (Eigen::Index i = 0; i < m.size(); ++i)
-      if (std::isfinite(m.data()[i])) { s += m.data()[i] * m.data()[i]; ++n; }
-  return s;
-}
-
-struct Scores {
-  double aic = 0, bic = 0;
-};
-Scores information(double rss, std::size_t n, int k) {
-  const double nn = static_cast<double>(n);
-  const double base = nn * std::log(std::max(rss, 1e-300) / nn);
-  return {base + 2.0 * k, base + k * std::log(nn)};
-}
-
-int largest_capacitance_param(const th::Network& net, const Eigen::VectorXd& p) {
-  int best = -1;
-  for (const auto& nd : net.nodes)
-    if (best < 0 || p(nd.capacitance_param) > p(best)) best = nd.capacitance_param;
-  return best;
-}
-
-// Candidate explanatory signals for one recording (aligned with its rows).
-std::vector<std::pair<std::string, std::vector<double>>> candidate_signals(const th::Network& net, const th::Recording& rec,
-                                                                            const Eigen::MatrixXd& nodes_c,
-                                                                            const std::vector<int>& measured_nodes) {
-  const std::size_t rows = rec.rows();
-  std::vector<std::pair<std::string, std::vector<double>>> s;
-  s.emplace_back("speed_rpm", rec.speed_rpm);
-  std::vector<double> since(rows), decay(rows), amb_rate(rows);
-  double last_change = rec.time_s.front(), state = 0;
-  for (std::size_t k = 0; k < rows; ++k) {
-    if (k > 0 && rec.speed_rpm[k] != rec.speed_rpm[k - 1]) last_change = rec.time_s[k];
-    since[k] = std::min(rec.time_s[k] - last_change, 4 * 3600.0);
-    if (k > 0) {
-      state *= std::exp(-(rec.time_s[k] - rec.time_s[k - 1]) / 1800.0);
-      state += std::max(0.0, rec.speed_rpm[k] - rec.speed_rpm[k - 1]) / 1000.0;
-    }
-    decay[k] = state;
-    const std::size_t a = k > 0 ? k - 1 : k, b = k + 1 < rows ? k + 1 : k;
-    amb_rate[k] = b > a ? (rec.ambient_c[b] - rec.ambient_c[a]) / (rec.time_s[b] - rec.time_s[a]) * 3600.0 : 0.0;
-  }
-  s.emplace_back("time_since_speed_change_s", since);
-  s.emplace_back("speed_increase_decay_30min", decay);
-  s.emplace_back("ambient_c", rec.ambient_c);
-  s.emplace_back("ambient_rate_K_per_h", amb_rate);
-  for (int i = 0; i < net.node_count(); ++i) {
-    std::vector<double> theta(rows), rate(rows);
-    for (std::size_t k = 0; k < rows; ++k) {
-      theta[k] = nodes_c(k, i) - rec.ambient_c[k];
-      const std::size_t a = k > 0 ? k - 1 : k, b = k + 1 < rows ? k + 1 : k;
-      rate[k] = b > a ? (nodes_c(b, i) - nodes_c(a, i)) / (rec.time_s[b] - rec.time_s[a]) * 3600.0 : 0.0;
-    }
-    s.emplace_back("theta_" + net.nodes[i].name, theta);
-    s.emplace_back("rate_" + net.nodes[i].name + "_K_per_h", rate);
-  }
-  for (std::size_t a = 0; a < measured_nodes.size(); ++a)
-    for (std::size_t b = a + 1; b < measured_nodes.size(); ++b) {
-      const int i = measured_nodes[a], j = measured_nodes[b];
-      if (i == j) continue;
-      std::vector<double> d(rows);
-      for (std::size_t k = 0; k < rows; ++k) d[k] = nodes_c(k, i) - nodes_c(k, j);
-      s.emplace_back("theta_" + net.nodes[i].name + "-" + net.nodes[j].name, d);
-    }
-  return s;
-}
-
 std::vector<std::string> columns_of(const th::Network& net) {
   std::vector<std::string> c;
   for (const auto& m : net.measurements) c.push_back(m.column);
   return c;
 }
 
-std::vector<Eigen::MatrixXd> measured_of(const th::Network& net, const std::vector<th::Recording>& recs) {
-  std::vector<Eigen::MatrixXd> out;
-  for (const auto& r : recs) {
-    const std::vector<int> cols = th::measurement_columns(net, r);
-    Eigen::MatrixXd m(static_cast<Eigen::Index>(r.rows()), static_cast<Eigen::Index>(cols.size()));
-    for (std::size_t j = 0; j < cols.size(); ++j) m.col(static_cast<Eigen::Index>(j)) = r.temp_c.col(cols[j]);
-    out.push_back(m);
-  }
-  return out;
+std::string file_name(const std::string& path) {
+  const auto p = path.find_last_of('/');
+  return p == std::string::npos ? path : path.substr(p + 1);
 }
 
-// Fit of one candidate (network effects or transient heat) and its scores.
-struct CandidateFit {
-  Eigen::VectorXd values;
-  std::vector<Eigen::VectorXd> x0;
-  std::vector<Eigen::MatrixXd> extra_fit, extra_check;
-  std::vector<ParamReport> params;
-  double key_z = 0;
-  int free_count = 0;
-};
+class ResidualLoop {
+ public:
+  ResidualLoop(const th::Network& base, const Eigen::VectorXd& base_params, const std::vector<th::Recording>& fit,
+               const std::vector<th::Recording>& check, const LoopOptions& o)
+      : base_(base), start_(base_params), fit_(fit), check_(check), o_(o), t_start_(std::chrono::steady_clock::now()) {}
 
-ParamReport report_of(const th::FitResult& fr, const th::Network& net, const std::string& name) {
-  const int i = net.param_index(name);
-  ParamReport p;
-  p.name = name;
-  p.unit = net.params[i].unit;
-  p.value = fr.estimates[i].value;
-  p.sigma = fr.estimates[i].sigma;
-  return p;
-}
-
-std::vector<Eigen::MatrixXd> impulses_for(const th::Network& net, int transient_node, const std::vector<th::Recording>& recs) {
-  std::vector<Eigen::MatrixXd> out;
-  if (transient_node < 0) return out;
-  for (const auto& r : recs) out.push_back(transient_impulses_w(net, r, transient_node));
-  return out;
-}
-
-CandidateFit fit_network_effect(const AugmentedModel& am, const th::Network& base, const Eigen::VectorXd& base_values,
-                                const std::vector<th::Recording>& fit, const LoopOptions& o,
-                                const std::vector<Eigen::VectorXd>& starts, int iterations) {
-  th::FitOptions fo;
-  fo.staged = false;
-  fo.max_iterations = iterations;
-  fo.extra_heat_w = impulses_for(am.net, am.transient_node, fit);
-  if (!o.fit_base) fo.free_only = am.effect_params;
-  if (!std::isfinite(am.net.sum_capacitance_J_per_K) && o.fit_base) {
-    // extra nodes: pin the scale with the largest base capacitance at its base-fit value
-    const int c = largest_capacitance_param(base, base_values);
-    if (c >= 0 && !base.params[c].fixed) fo.hold.push_back(base.params[c].name);
+  LoopResult run() {
+    check_inputs();
+    fit_base_model();
+    evaluate_base_model();
+    test_base_residuals();
+    trace_heat();
+    refuse_unidentifiable_families();
+    propose_candidates();
+    refit_candidates();
+    repolish_base();
+    decide();
+    L_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start_).count();
+    say(fmt::format("residual: verdict {} ({}) in {:.1f} s", L_.verdict, L_.label, L_.seconds));
+    return std::move(L_);
   }
-  th::FitResult fr;
-  bool have = false;
-  for (const Eigen::VectorXd& s : starts) {  // several starts where the effect has a nonconvex start-up
-    // Stage 1: the effect alone on top of the base fit (the base has absorbed part of the effect, so
-    // a joint fit straight from the base tends to stall); stage 2: everything jointly.
-    th::FitOptions f1 = fo;
-    f1.start = s;
-    f1.free_only = am.effect_params;
-    f1.hold.clear();
-    th::FitResult f = th::fit_network(am.net, fit, f1);
-    if (o.fit_base) {
-      fo.start = f.params;
-      f = th::fit_network(am.net, fit, fo);
-    }
-    say(o, fmt::format("residual:     start {}: rms {:.4g} K, {} ({} iterations)", &s - starts.data(), f.rms_K,
-                       f.converged ? "converged" : "NOT converged", f.stages.empty() ? 0 : f.stages.back().iterations));
-    if (!have || f.rms_K < fr.rms_K) { fr = std::move(f); have = true; }
-  }
-  CandidateFit cf;
-  cf.values = fr.params;
-  cf.x0 = fr.initial_states;
-  cf.extra_fit = fo.extra_heat_w;
-  cf.free_count = fr.free_parameter_count;
-  const int k = am.net.param_index(am.key_param);
-  const double sg = fr.estimates[k].sigma;
-  cf.key_z = sg > 0 ? std::abs(fr.estimates[k].value) / sg : (std::abs(fr.estimates[k].value) > 0 ? 1e9 : 0.0);
-  if (am.transient_node >= 0) {
-    const std::string node = am.key_param.substr(std::string("g_transient_").size());
-    const int i = am.net.param_index(am.effect_params[0]), j = am.net.param_index(am.effect_params[1]);
-    const TransientValues tv = transient_values(fr.params(i), fr.params(j), fr.covariance(i, i), fr.covariance(j, j), fr.covariance(i, j));
-    cf.params.push_back({"a_transient_" + node, "W per 1000 rpm increase", tv.amplitude_w_per_krpm, tv.amplitude_sigma});
-    cf.params.push_back({"tau_transient_" + node, "s", tv.tau_s, tv.tau_sigma});
-  } else {
-    for (const auto& name : am.effect_params) cf.params.push_back(report_of(fr, am.net, name));
-  }
-  return cf;
-}
 
-}  // namespace
+ private:
+  void say(const std::string& s) const {
+    if (o_.progress) o_.progress(s);
+  }
+  int nc() const { return static_cast<int>(L_.columns.size()); }
+  bool wanted(EffectKind k) const { return o_.effects.empty() || std::find(o_.effects.begin(), o_.effects.end(), k) != o_.effects.end(); }
 
-Evaluation evaluate_model(const th::Network& net, const Eigen::VectorXd& params, const th::Recording& rec,
-                          const Eigen::MatrixXd* extra, const Eigen::VectorXd* x0_given) {
-  Evaluation ev;
-  const int n = net.node_count();
-  Eigen::VectorXd x0;
-  if (x0_given) {
-    x0 = *x0_given;
-  } else {
-    // r(x0) = pred - meas is affine in x0: solve the least-squares initial state (small ridge
-    // towards the first-sample guess for nodes the data barely see).
-    const Eigen::VectorXd guess = th::first_sample_state(net, rec);
-    const Eigen::MatrixXd r0 = th::prediction_residuals(net, params, rec, guess, extra);
-    std::vector<Eigen::MatrixXd> cols;
-    for (int i = 0; i < n; ++i) {
-      Eigen::VectorXd xi = guess;
-      xi(i) += 1.0;
-      cols.push_back(th::prediction_residuals(net, params, rec, xi, extra) - r0);
-    }
-    Eigen::MatrixXd A = Eigen::MatrixXd::Zero(n, n);
-    Eigen::VectorXd b = Eigen::VectorXd::Zero(n);
-    for (Eigen::Index k = 0; k < r0.size(); ++k) {
-      if (!std::isfinite(r0.data()[k])) continue;
-      for (int i = 0; i < n; ++i) {
-        b(i) -= cols[i].data()[k] * r0.data()[k];
-        for (int j = 0; j < n; ++j) A(i, j) += cols[i].data()[k] * cols[j].data()[k];
+  // Stage 0: recordings, columns, declared inputs.
+  void check_inputs() {
+    if (fit_.empty()) throw std::invalid_argument("residual: no fit recordings (--fit)");
+    if (check_.empty()) throw std::invalid_argument("residual: no check recordings (--check)");
+    base_.validate();
+    for (const auto* set : {&fit_, &check_})
+      for (const auto& r : *set) {
+        th::measurement_columns(base_, r);  // throws naming a missing or declared column
+        th::recording_inputs(base_, r);     // the base network's own declared columns
       }
-    }
-    A.diagonal().array() += 1e-9 * std::max(A.trace() / n, 1e-12);
-    x0 = guess + A.ldlt().solve(b);
-  }
-  ev.x0_c = x0;
-  ev.nodes_c = th::simulate_recording(net, params, rec, x0, extra);
-  const std::vector<int> cols = th::measurement_columns(net, rec);
-  const Eigen::Index rows = static_cast<Eigen::Index>(rec.rows());
-  ev.model_c.resize(rows, static_cast<Eigen::Index>(cols.size()));
-  ev.residual_k.resize(rows, static_cast<Eigen::Index>(cols.size()));
-  for (std::size_t j = 0; j < cols.size(); ++j) {
-    ev.model_c.col(j) = ev.nodes_c.col(net.measurements[j].node);
-    for (Eigen::Index k = 0; k < rows; ++k) {
-      const double y = rec.temp_c(k, cols[j]);
-      ev.residual_k(k, j) = std::isfinite(y) ? y - ev.model_c(k, j) : kNaN;
-    }
-  }
-  return ev;
-}
-
-ErrorMetrics error_metrics(const std::vector<Eigen::MatrixXd>& res, const std::vector<Eigen::MatrixXd>& meas) {
-  ErrorMetrics m;
-  double ss = 0;
-  m.nmse_min = std::numeric_limits<double>::infinity();
-  const Eigen::Index nc = res.empty() ? 0 : res[0].cols();
-  for (Eigen::Index c = 0; c < nc; ++c) {
-    double se = 0, sy = 0, syy = 0;
-    std::size_t cnt = 0;
-    for (std::size_t r = 0; r < res.size(); ++r)
-      for (Eigen::Index k = 0; k < res[r].rows(); ++k) {
-        const double e = res[r](k, c), y = meas[r](k, c);
-        if (!std::isfinite(e) || !std::isfinite(y)) continue;
-        se += e * e;
-        sy += y;
-        syy += y * y;
-        ++cnt;
-        m.max_abs_k = std::max(m.max_abs_k, std::abs(e));
+    L_.base_net = base_;
+    L_.columns = columns_of(base_);
+    // declared columns the effects may use: those of any recording
+    for (const auto* set : {&fit_, &check_})
+      for (const auto& r : *set) {
+        for (const auto& c : th::boundary_columns(r))
+          if (std::find(boundaries_.begin(), boundaries_.end(), c) == boundaries_.end()) boundaries_.push_back(c);
+        for (const auto& c : th::event_columns(r))
+          if (std::find(events_.begin(), events_.end(), c) == events_.end()) events_.push_back(c);
       }
-    if (cnt == 0) continue;
-    ss += se;
-    m.cells += cnt;
-    const double var = syy - sy * sy / static_cast<double>(cnt);
-    if (var > 0) m.nmse_min = std::min(m.nmse_min, 1.0 - se / var);
   }
-  m.rmse_k = m.cells ? std::sqrt(ss / static_cast<double>(m.cells)) : kNaN;
-  if (!std::isfinite(m.nmse_min)) m.nmse_min = kNaN;
-  return m;
-}
 
-LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& base_params_in, const std::vector<th::Recording>& fit,
-                             const std::vector<th::Recording>& check, const LoopOptions& o) {
-  const auto t_start = std::chrono::steady_clock::now();
-  if (fit.empty()) throw std::invalid_argument("residual: no fit recordings (--fit)");
-  if (check.empty()) throw std::invalid_argument("residual: no check recordings (--check)");
-  base.validate();
-  for (const auto& r : fit) th::measurement_columns(base, r);    // throws naming a missing column
-  for (const auto& r : check) th::measurement_columns(base, r);
-  LoopResult L;
-  L.base_net = base;
-  L.columns = columns_of(base);
-  const int n = base.node_count();
-  const int nc = static_cast<int>(L.columns.size());
-
-  // 1. base model
-  Eigen::VectorXd bp;
-  std::vector<Eigen::VectorXd> bx0;
-  int base_free = 0;
-  if (o.fit_base) {
-    say(o, "residual: fitting the base model on " + std::to_string(fit.size()) + " recording(s)");
-    th::FitOptions fo;
-    // The base gets the refinement budget, not the screening one: every candidate is compared with
-    // it (dBIC, check factor), and a base stopped short of its optimum hands each candidate the rest
-    // of the base fit as a spurious "improvement" (seen on tests/data/incubator-dt).
-    fo.max_iterations = std::max({o.max_iterations, o.refine_iterations, 60});
-    fo.start_iterations = fo.max_iterations;
-    fo.progress = o.progress;
-    if (base_params_in.size() == base.param_count()) fo.start = base_params_in;
-    L.base_fit = th::fit_network(base, fit, fo);
-    bp = L.base_fit.params;
-    bx0 = L.base_fit.initial_states;
-    base_free = L.base_fit.free_parameter_count;
-    // The staged pipeline restarts its cooling stages from the data; on a model that lacks an
-    // effect it can land in a worse minimum than the start it was given. Keep the better one, so
-    // "before" is never made to look worse than the model the caller already had.
-    if (base_params_in.size() == base.param_count()) {
-      double rss_start = 0, rss_fit = 0;
-      std::vector<Eigen::VectorXd> x0_start;
-      for (std::size_t r = 0; r < fit.size(); ++r) {
-        const Evaluation es = evaluate_model(base, base_params_in, fit[r]);
-        const Evaluation ef = evaluate_model(base, bp, fit[r], nullptr, &bx0[r]);
-        rss_start += es.residual_k.unaryExpr([](double v) { return std::isfinite(v) ? v * v : 0.0; }).sum();
-        rss_fit += ef.residual_k.unaryExpr([](double v) { return std::isfinite(v) ? v * v : 0.0; }).sum();
-        x0_start.push_back(es.x0_c);
+  // Stage 1: the base model (staged fit, or the given values).
+  void fit_base_model() {
+    if (o_.fit_base) {
+      say("residual: fitting the base model on " + std::to_string(fit_.size()) + " recording(s)");
+      th::FitOptions fo;
+      // The base gets the refinement budget: every candidate is compared with it, and a base stopped
+      // short of its optimum hands each candidate the rest of the base fit as a spurious gain.
+      fo.max_iterations = std::max({o_.max_iterations, o_.refine_iterations, 60});
+      fo.start_iterations = fo.max_iterations;
+      fo.progress = [this](const std::string& s) { say("residual: base fit: " + s); };
+      if (start_.size() == base_.param_count()) fo.start = start_;
+      L_.base_fit = th::fit_network(base_, fit_, fo);
+      bp_ = L_.base_fit.params;
+      bx0_ = L_.base_fit.initial_states;
+      base_free_ = L_.base_fit.free_parameter_count;
+      // The staged pipeline restarts from the data; on a model that lacks an effect it can land in
+      // a worse minimum than the start it was given. Keep the better one.
+      if (start_.size() == base_.param_count() && start_.allFinite()) {
+        double rss_start = 0, rss_fit = 0;
+        std::vector<Eigen::VectorXd> x0_start;
+        for (std::size_t r = 0; r < fit_.size(); ++r) {
+          const Evaluation es = evaluate_model(base_, start_, fit_[r]);
+          const Evaluation ef = evaluate_model(base_, bp_, fit_[r], nullptr, &bx0_[r]);
+          rss_start += es.residual_k.unaryExpr([](double v) { return std::isfinite(v) ? v * v : 0.0; }).sum();
+          rss_fit += ef.residual_k.unaryExpr([](double v) { return std::isfinite(v) ? v * v : 0.0; }).sum();
+          x0_start.push_back(es.x0_c);
+        }
+        if (rss_start < rss_fit) {
+          say("residual: the refit base is worse than the given start; keeping the start");
+          bp_ = start_;
+          bx0_ = x0_start;
+          L_.base_fit.params = bp_;
+          L_.base_fit.initial_states = bx0_;
+        }
       }
-      if (rss_start < rss_fit) {
-        say(o, "residual: the refit base is worse than the given start; keeping the start");
-        bp = base_params_in;
-        bx0 = x0_start;
-        L.base_fit.params = bp;
-        L.base_fit.initial_states = bx0;
-      }
+      for (int i = 0; i < base_.param_count(); ++i)
+        if (!base_.params[static_cast<std::size_t>(i)].fixed &&
+            std::find(held_.begin(), held_.end(), i) == held_.end())
+          free_params_.push_back(i);
+    } else {
+      if (start_.size() != base_.param_count() || !start_.allFinite())
+        throw std::invalid_argument("residual: the base model needs a value for every parameter (--use-values)");
+      bp_ = start_;
+      for (const auto& r : fit_) bx0_.push_back(evaluate_model(base_, bp_, r).x0_c);
+      L_.base_fit.params = bp_;
+      L_.base_fit.initial_states = bx0_;
     }
-  } else {
-    if (base_params_in.size() != base.param_count()) throw std::invalid_argument("residual: the base model needs a value for every parameter");
-    bp = base_params_in;
-    for (const auto& r : fit) bx0.push_back(evaluate_model(base, bp, r).x0_c);
-    L.base_fit.params = bp;
   }
-  const std::vector<Eigen::MatrixXd> meas_fit = measured_of(base, fit), meas_check = measured_of(base, check);
-  std::vector<Eigen::MatrixXd> nodes_fit;
-  for (std::size_t r = 0; r < fit.size(); ++r) {
-    Evaluation ev = evaluate_model(base, bp, fit[r], nullptr, &bx0[r]);
-    L.fit_resid_before.push_back(ev.residual_k);
-    nodes_fit.push_back(ev.nodes_c);
-  }
-  std::vector<Eigen::MatrixXd> nodes_check;
-  for (const auto& r : check) {
-    Evaluation ev = evaluate_model(base, bp, r);
-    L.check_resid_before.push_back(ev.residual_k);
-    L.check_model_before.push_back(ev.model_c);
-    nodes_check.push_back(ev.nodes_c);
-  }
-  L.before_fit = error_metrics(L.fit_resid_before, meas_fit);
-  L.before_check = error_metrics(L.check_resid_before, meas_check);
-  std::size_t n_fit = 0;
-  const double rss_base = rss_of(L.fit_resid_before, n_fit);
-  const int k_base = base_free + n * static_cast<int>(fit.size());
-  const Scores s_base = information(rss_base, n_fit, k_base);
-  {
+
+  // The base model's residuals, errors and the noise level.
+  void evaluate_base_model() {
+    meas_fit_ = measured_columns_of(base_, fit_);
+    meas_check_ = measured_columns_of(base_, check_);
+    for (std::size_t r = 0; r < fit_.size(); ++r) {
+      Evaluation ev = evaluate_model(base_, bp_, fit_[r], nullptr, &bx0_[r]);
+      L_.fit_resid_before.push_back(ev.residual_k);
+      nodes_fit_.push_back(ev.nodes_c);
+    }
+    for (const auto& r : check_) {
+      Evaluation ev = evaluate_model(base_, bp_, r);
+      L_.check_resid_before.push_back(ev.residual_k);
+      L_.check_model_before.push_back(ev.model_c);
+      nodes_check_.push_back(ev.nodes_c);
+    }
+    L_.before_fit = error_metrics(L_.fit_resid_before, meas_fit_);
+    L_.before_check = error_metrics(L_.check_resid_before, meas_check_);
+    std::size_t n_fit = 0;
+    const double rss = sum_of_squares(L_.fit_resid_before, n_fit);
+    const int k = (o_.fit_base ? base_free_ : 0) + base_.node_count() * static_cast<int>(fit_.size());
+    base_bic_ = bic(rss, n_fit, k);
     std::vector<double> sig;
-    for (const auto& m : meas_fit) sig.push_back(th::estimate_noise_sigma(m));
+    for (const auto& m : meas_fit_) sig.push_back(th::estimate_noise_sigma(m));
     std::sort(sig.begin(), sig.end());
-    L.noise_sigma_k = sig[sig.size() / 2];
-  }
-  say(o, fmt::format("residual: base rms {:.4g} K (fit), {:.4g} K (check); noise {:.3g} K", L.before_fit.rmse_k,
-                     L.before_check.rmse_k, L.noise_sigma_k));
-
-  // 2. residual tests
-  std::vector<int> measured_nodes;
-  for (const auto& m : base.measurements) measured_nodes.push_back(m.node);
-  std::vector<std::vector<std::pair<std::string, std::vector<double>>>> sig_parts;
-  for (std::size_t r = 0; r < fit.size(); ++r) sig_parts.push_back(candidate_signals(base, fit[r], nodes_fit[r], measured_nodes));
-  for (std::size_t r = 0; r < check.size(); ++r) sig_parts.push_back(candidate_signals(base, check[r], nodes_check[r], measured_nodes));
-  std::vector<Eigen::MatrixXd> all_res = L.fit_resid_before;
-  all_res.insert(all_res.end(), L.check_resid_before.begin(), L.check_resid_before.end());
-  std::vector<std::vector<double>> speed_parts;
-  for (const auto& r : fit) speed_parts.push_back(r.speed_rpm);
-  for (const auto& r : check) speed_parts.push_back(r.speed_rpm);
-  const std::vector<double> speed_all = concat_signal(speed_parts);
-  bool all_white = true;
-  std::vector<double> rate_corr(nc, 0.0);
-  for (int c = 0; c < nc; ++c) {
-    ChannelDiagnostics d;
-    d.column = L.columns[c];
-    d.node = base.nodes[base.measurements[c].node].name;
-    const std::vector<double> e = concat_column(all_res, c);
-    d.all = ljung_box(e);
-    std::vector<double> eo = e, ec = e;
-    for (std::size_t k = 0; k < e.size(); ++k) {
-      if (!std::isfinite(speed_all[k])) continue;
-      (base.mode_at(speed_all[k]) == th::Mode::Operating ? ec : eo)[k] = kNaN;
-    }
-    d.operating = ljung_box(eo);
-    d.cooling = ljung_box(ec);
-    d.white = !(d.all.p_value < o.whiteness_p / nc);
-    all_white = all_white && d.white;
-    const std::size_t nsig = sig_parts[0].size();
-    for (std::size_t s = 0; s < nsig; ++s) {
-      std::vector<std::vector<double>> parts;
-      for (const auto& p : sig_parts) parts.push_back(p[s].second);
-      const CorrelationTest t = correlation_test(sig_parts[0][s].first, e, concat_signal(parts));
-      if (sig_parts[0][s].first == "rate_" + d.node + "_K_per_h") rate_corr[c] = std::abs(t.r);
-      if (t.p_value < o.correlation_p) d.correlations.push_back(t);
-    }
-    std::sort(d.correlations.begin(), d.correlations.end(), [](const auto& a, const auto& b) { return std::abs(a.r) > std::abs(b.r); });
-    if (d.correlations.size() > 5) d.correlations.resize(5);
-    L.diagnostics.push_back(d);
+    L_.noise_sigma_k = sig[sig.size() / 2];
+    say(fmt::format("residual: base rms {:.4g} K (fit), {:.4g} K (check); noise {:.3g} K", L_.before_fit.rmse_k,
+                    L_.before_check.rmse_k, L_.noise_sigma_k));
   }
 
-  // 3. trace: unexplained heat flow at the measured nodes (inverse method on the residual)
-  try {
-    std::vector<int> trace_nodes;
-    for (int m : measured_nodes)
-      if (std::find(trace_nodes.begin(), trace_nodes.end(), m) == trace_nodes.end()) trace_nodes.push_back(m);
-    std::sort(trace_nodes.begin(), trace_nodes.end());
-    th::InverseProblem ip = th::make_inverse_problem(base, bp, fit[0], trace_nodes, true);
-    ip.initial_state_c = bx0[0];
-    th::HeatInverseOptions ho;
-    std::vector<double> dts;
-    for (std::size_t k = 1; k < fit[0].rows(); ++k) dts.push_back(fit[0].time_s[k] - fit[0].time_s[k - 1]);
-    std::nth_element(dts.begin(), dts.begin() + dts.size() / 2, dts.end());
-    ho.step_s = o.trace_step_s > 0 ? o.trace_step_s : std::max(60.0, 10.0 * dts[dts.size() / 2]);
-    ho.scheme = th::Discretisation::ExactZoh;
-    ho.alpha_points = 25;
-    const th::HeatInverseResult hr = th::solve_heat_inverse(ip, ho);
-    for (std::size_t j = 0; j < trace_nodes.size(); ++j) {
-      NodeTrace t;
-      t.node = base.nodes[trace_nodes[j]].name;
-      t.time_s = hr.piece_start_s;
-      for (Eigen::Index i = 0; i < hr.heat_w.rows(); ++i) t.heat_w.push_back(hr.heat_w(i, j));
-      t.rms_w = std::sqrt(hr.heat_w.col(j).squaredNorm() / std::max<Eigen::Index>(1, hr.heat_w.rows()));
-      L.trace.push_back(t);
-    }
-  } catch (const std::exception& e) {
-    say(o, std::string("residual: heat trace skipped: ") + e.what());
+  // Stage 2: whiteness and correlations of the base residual.
+  void test_base_residuals() {
+    const ResidualTestsResult t = test_residuals(base_, fit_, check_, nodes_fit_, nodes_check_, L_.fit_resid_before,
+                                                 L_.check_resid_before, o_.whiteness_p, o_.correlation_p);
+    L_.diagnostics = t.diagnostics;
+    all_white_ = t.all_white;
   }
 
-  // 4. candidates
-  const std::vector<EffectKind> kinds = o.effects.empty() ? all_effect_kinds() : o.effects;
-  std::vector<int> ranked_nodes;  // by traced unexplained heat
-  {
-    std::vector<std::pair<double, int>> v;
-    for (const auto& t : L.trace) v.emplace_back(-t.rms_w, base.node_index(t.node));
-    std::sort(v.begin(), v.end());
-    for (const auto& p : v) ranked_nodes.push_back(p.second);
-    for (int i = 0; i < n; ++i)
-      if (std::find(ranked_nodes.begin(), ranked_nodes.end(), i) == ranked_nodes.end()) ranked_nodes.push_back(i);
-  }
-  std::vector<int> source_nodes;
-  for (int i : ranked_nodes)
-    for (const auto& s : base.sources)
-      if (s.node == i && std::find(source_nodes.begin(), source_nodes.end(), i) == source_nodes.end()) source_nodes.push_back(i);
-  if (source_nodes.empty()) source_nodes = ranked_nodes;
-  std::vector<EffectSpec> specs;
-  for (EffectKind k : kinds) {
-    switch (k) {
-      case EffectKind::HeatSourceTransient:
-      case EffectKind::TemperatureDependentHeat:
-        for (std::size_t i = 0; i < source_nodes.size() && static_cast<int>(i) < o.max_heat_nodes; ++i) specs.push_back({k, source_nodes[i], ""});
-        break;
-      case EffectKind::ExtraHeatInput:
-        for (std::size_t i = 0; i < ranked_nodes.size() && static_cast<int>(i) < o.max_heat_nodes; ++i) specs.push_back({k, ranked_nodes[i], ""});
-        break;
-      case EffectKind::SensorLag: {
-        std::vector<std::pair<double, int>> v;
-        for (int c = 0; c < nc; ++c) v.emplace_back(-rate_corr[c], c);
-        std::sort(v.begin(), v.end());
-        std::set<std::string> seen;
-        for (const auto& p : v) {
-          if (static_cast<int>(seen.size()) >= o.max_sensor_columns) break;
-          if (!seen.insert(L.columns[p.second]).second) continue;
-          specs.push_back({k, base.measurements[p.second].node, L.columns[p.second]});
-        }
-        break;
-      }
-      case EffectKind::AmbientDynamics: {
-        bool has_amb = false;
-        for (const auto& l : base.links) has_amb = has_amb || l.b == th::kAmbient;
-        if (has_amb) specs.push_back({k, -1, ""});
-        break;
-      }
-    }
-  }
-
-  auto evaluate_candidate = [&](const EffectSpec& spec, int iterations, const Eigen::VectorXd* start) {
-    CandidateResult cr;
-    cr.label = effect_label(spec, base);
-    cr.effect = effect_name(spec.kind);
-    cr.nodes = effect_nodes(spec, base);
+  // Stage 3: the unexplained heat per node (first fit recording), for the report.
+  void trace_heat() {
     try {
-      const AugmentedModel am = augment(base, bp, spec);
-      std::vector<Eigen::VectorXd> starts = {start ? *start : am.params};
-      if (spec.kind == EffectKind::AmbientDynamics && !start) {
-        // a near-base start (weak lag) and a strong-lag start; the better fit is kept
-        Eigen::VectorXd weak = am.params;
-        weak(am.net.param_index("C_ambient_lag")) *= 0.2;
-        weak(am.net.param_index("g_ambient_lag")) *= 25.0;
-        starts.push_back(weak);
-      }
-      const CandidateFit cf = fit_network_effect(am, base, bp, fit, o, starts, iterations);
-      cr.transient_node = am.transient_node;
-      cr.net = am.net;
-      cr.values = cf.values;
-      cr.params = cf.params;
-      cr.key_z = cf.key_z;
-      std::vector<Eigen::MatrixXd> rf, rc;
-      for (std::size_t r = 0; r < fit.size(); ++r) {
-        const Eigen::MatrixXd* ex = cf.extra_fit.empty() ? nullptr : &cf.extra_fit[r];
-        rf.push_back(evaluate_model(cr.net, cr.values, fit[r], ex, &cf.x0[r]).residual_k);
-      }
-      for (const auto& r : check) {
-        Eigen::MatrixXd ex;
-        if (cr.transient_node >= 0) ex = transient_impulses_w(cr.net, r, cr.transient_node);
-        rc.push_back(evaluate_model(cr.net, cr.values, r, cr.transient_node >= 0 ? &ex : nullptr).residual_k);
-      }
-      cr.fit = error_metrics(rf, meas_fit);
-      cr.check = error_metrics(rc, meas_check);
-      std::size_t nn = 0;
-      const double rss = rss_of(rf, nn);
-      const int k = (o.fit_base ? cf.free_count : static_cast<int>(cf.params.size())) +
-                    cr.net.node_count() * static_cast<int>(fit.size());
-      const Scores s = information(rss, nn, k);
-      cr.aic = s.aic;
-      cr.bic = s.bic;
-      cr.delta_bic = s_base.bic - s.bic;
-      cr.check_factor = cr.check.rmse_k > 0 ? L.before_check.rmse_k / cr.check.rmse_k : 0;
-      const bool b_ok = cr.delta_bic >= o.bic_margin, c_ok = cr.check_factor >= o.check_improvement, z_ok = cr.key_z >= o.param_z;
-      // An effect that only trims part of the check error while most of it stays (lid openings
-      // in a lab incubator, say) does not "explain" the residual: its check error must come down
-      // to the order of its own fit error.
-      const double gen = cr.fit.rmse_k > 0 ? cr.check.rmse_k / cr.fit.rmse_k : 0;
-      const bool g_ok = gen <= o.max_check_to_fit_ratio;
-      cr.accepted = b_ok && c_ok && z_ok && g_ok;
-      cr.reason = fmt::format("dBIC {:.1f} {} {:.0f}; check x{:.2f} {} {:.2f}; key |z| {:.1f} {} {:.0f}; check/fit rmse {:.1f} {} {:.0f}",
-                              cr.delta_bic, b_ok ? ">=" : "<", o.bic_margin, cr.check_factor, c_ok ? ">=" : "<",
-                              o.check_improvement, cr.key_z, z_ok ? ">=" : "<", o.param_z, gen, g_ok ? "<=" : ">",
-                              o.max_check_to_fit_ratio);
+      L_.trace = trace_unexplained_heat(base_, bp_, fit_[0], bx0_[0], o_.trace_step_s, L_.noise_sigma_k);
     } catch (const std::exception& e) {
-      cr.accepted = false;
-      cr.reason = std::string("fit failed: ") + e.what();
-    }
-    return cr;
-  };
-  for (const EffectSpec& spec : specs) {
-    say(o, "residual: trying " + effect_label(spec, base));
-    CandidateResult cr = evaluate_candidate(spec, o.max_iterations, nullptr);
-    say(o, "residual:   " + cr.label + ": " + cr.reason);
-    L.candidates.push_back(std::move(cr));
-  }
-  // Refinement: the screening fits are short; the most promising candidates (largest BIC gain) are
-  // continued from where they stopped with a long joint fit, so the claimed effect is fully fitted.
-  {
-    std::vector<std::pair<double, std::size_t>> order;
-    for (std::size_t i = 0; i < L.candidates.size(); ++i)
-      if (L.candidates[i].values.size() > 0 && L.candidates[i].delta_bic >= o.bic_margin) order.emplace_back(-L.candidates[i].delta_bic, i);
-    std::sort(order.begin(), order.end());
-    for (std::size_t j = 0; j < order.size() && static_cast<int>(j) < o.refine_candidates; ++j) {
-      const std::size_t i = order[j].second;
-      say(o, "residual: refining " + L.candidates[i].label);
-      const Eigen::VectorXd start = L.candidates[i].values;
-      CandidateResult cr = evaluate_candidate(specs[i], o.refine_iterations, &start);
-      if (cr.values.size() > 0 && cr.bic <= L.candidates[i].bic) {
-        cr.reason += " (refined)";
-        L.candidates[i] = std::move(cr);
-      }
-      say(o, "residual:   " + L.candidates[i].label + ": " + L.candidates[i].reason);
+      say(std::string("residual: heat trace skipped: ") + e.what());
     }
   }
 
-  // 5. decision
-  for (std::size_t i = 0; i < L.candidates.size(); ++i) {
-    const auto& c = L.candidates[i];
-    if (!c.accepted) continue;
-    if (L.chosen < 0 || c.check.rmse_k < L.candidates[L.chosen].check.rmse_k * (1 - 1e-9) ||
-        (std::abs(c.check.rmse_k - L.candidates[L.chosen].check.rmse_k) <= 1e-9 * c.check.rmse_k && c.bic < L.candidates[L.chosen].bic))
-      L.chosen = static_cast<int>(i);
+  void refuse(EffectKind k, const std::string& column, const std::string& why) {
+    CandidateResult c;
+    c.effect = effect_name(k);
+    c.label = column.empty() ? c.effect : c.effect + "@" + column;
+    c.spec.kind = k;
+    c.spec.column = column;
+    c.status = "refused";
+    c.reason = why;
+    L_.candidates.push_back(c);
+    say("residual: refused " + c.label + ": " + why);
   }
-  L.fit_resid_after = L.fit_resid_before;
-  L.check_resid_after = L.check_resid_before;
-  L.check_model_after = L.check_model_before;
-  L.after_fit = L.before_fit;
-  L.after_check = L.before_check;
-  const bool big = L.before_check.rmse_k > o.significant_rms_factor * L.noise_sigma_k ||
-                   L.before_fit.rmse_k > o.significant_rms_factor * L.noise_sigma_k;
-  if (L.chosen >= 0) {
-    const CandidateResult& c = L.candidates[L.chosen];
-    L.effect = c.effect;
-    L.label = c.label;
-    L.nodes = c.nodes;
-    L.params = c.params;
-    L.fit_resid_after.clear();
-    L.check_resid_after.clear();
-    L.check_model_after.clear();
-    for (std::size_t r = 0; r < fit.size(); ++r) {
-      Eigen::MatrixXd ex;
-      if (c.transient_node >= 0) ex = transient_impulses_w(c.net, fit[r], c.transient_node);
-      L.fit_resid_after.push_back(evaluate_model(c.net, c.values, fit[r], c.transient_node >= 0 ? &ex : nullptr).residual_k);
-    }
-    for (const auto& r : check) {
-      Eigen::MatrixXd ex;
-      if (c.transient_node >= 0) ex = transient_impulses_w(c.net, r, c.transient_node);
-      const Evaluation ev = evaluate_model(c.net, c.values, r, c.transient_node >= 0 ? &ex : nullptr);
-      L.check_resid_after.push_back(ev.residual_k);
-      L.check_model_after.push_back(ev.model_c);
-      if (c.effect == "sensor_lag") {
-        // measurement distortion = probe temperature - temperature of the node it sits on
-        Eigen::MatrixXd d = Eigen::MatrixXd::Constant(ev.model_c.rows(), nc, 0.0);
-        for (int j = 0; j < nc; ++j) {
-          const int probe_node = c.net.measurements[j].node, true_node = base.measurements[j].node;
-          d.col(j) = ev.nodes_c.col(probe_node) - ev.nodes_c.col(true_node);
+
+  // Stage 4: what the fit recordings cannot identify.
+  void refuse_unidentifiable_families() {
+    const double sigma = std::max(L_.noise_sigma_k, 1e-4);
+    if (wanted(EffectKind::AmbientDynamics)) {
+      double lo = std::numeric_limits<double>::infinity(), hi = -lo;
+      for (const auto& r : fit_)
+        for (double a : r.ambient_c) {
+          lo = std::min(lo, a);
+          hi = std::max(hi, a);
         }
-        L.check_distortion.push_back(d);
+      const double need = std::max(0.2, 20 * sigma);
+      if (!(hi - lo >= need)) {
+        refuse(EffectKind::AmbientDynamics, "",
+               fmt::format("the ambient hardly varies in the fit recordings (range {:.3g} K < {:.2g} K): a lag of it cannot be "
+                           "identified",
+                           hi - lo, need));
+        ambient_refused_ = true;
       }
     }
-    L.after_fit = error_metrics(L.fit_resid_after, meas_fit);
-    L.after_check = error_metrics(L.check_resid_after, meas_check);
-    L.explanation = fmt::format("{} explains the residual: check rmse {:.4g} -> {:.4g} K (x{:.1f}), dBIC {:.1f}", c.label,
-                                L.before_check.rmse_k, L.after_check.rmse_k, c.check_factor, c.delta_bic);
-  } else if (all_white && !big) {
-    L.effect = "none";
-    L.label = "none";
-    L.explanation = fmt::format("the residual is white noise (Ljung-Box p >= {:.3g} on every channel, rms {:.3g} K vs noise {:.3g} K); "
-                                "no effect improves the model significantly",
-                                o.whiteness_p / nc, L.before_check.rmse_k, L.noise_sigma_k);
-  } else {
-    L.effect = "unexplained";
-    L.label = "unexplained";
+    auto in_every = [&](const std::string& col, bool boundary) -> std::string {
+      for (const auto* set : {&fit_, &check_})
+        for (const auto& r : *set) {
+          const auto cols = boundary ? th::boundary_columns(r) : th::event_columns(r);
+          if (std::find(cols.begin(), cols.end(), col) == cols.end())
+            return fmt::format("column {} is not declared as {} in {}", col, boundary ? "a boundary" : "an event", file_name(r.source));
+        }
+      return "";
+    };
+    if (wanted(EffectKind::SecondBoundary))
+      for (const auto& col : boundaries_) {
+        if (const std::string why = in_every(col, true); !why.empty()) {
+          refuse(EffectKind::SecondBoundary, col, why);
+          continue;
+        }
+        // the difference to the ambient is what such a link adds: it must differ from zero or vary
+        double sum = 0, sum2 = 0;
+        std::size_t n = 0;
+        for (const auto& r : fit_) {
+          const int c = r.channel_index(col);
+          for (std::size_t k = 0; k < r.rows(); ++k) {
+            const double d = r.temp_c(static_cast<Eigen::Index>(k), c) - r.ambient_c[k];
+            sum += d;
+            sum2 += d * d;
+            ++n;
+          }
+        }
+        const double mean = sum / static_cast<double>(n), sd = std::sqrt(std::max(sum2 / static_cast<double>(n) - mean * mean, 0.0));
+        const double need = std::max(0.05, 5 * sigma);
+        if (std::abs(mean) < need && sd < need) {
+          refuse(EffectKind::SecondBoundary, col,
+                 fmt::format("the boundary column equals the ambient within {:.2g} K in the fit recordings (mean difference "
+                             "{:+.3g} K, sd {:.3g} K): a link to it is a link to the ambient",
+                             need, mean, sd));
+          continue;
+        }
+        usable_boundaries_.push_back(col);
+      }
+    if (wanted(EffectKind::EventConductance))
+      for (const auto& col : events_) {
+        if (const std::string why = in_every(col, false); !why.empty()) {
+          refuse(EffectKind::EventConductance, col, why);
+          continue;
+        }
+        std::size_t on = 0, rows = 0;
+        for (const auto& r : fit_) {
+          const int c = r.channel_index(col);
+          for (std::size_t k = 0; k < r.rows(); ++k) on += r.temp_c(static_cast<Eigen::Index>(k), c) == 1.0 ? 1 : 0;
+          rows += r.rows();
+        }
+        if (on == 0) refuse(EffectKind::EventConductance, col, "no event in the fit recordings (" + col + " is 0 throughout)");
+        else if (on == rows) refuse(EffectKind::EventConductance, col, col + " is 1 throughout the fit recordings: no switching to identify");
+        else usable_events_.push_back(col);
+      }
+  }
+
+  // Stage 5: the linear screening of the dictionary.
+  void propose_candidates() {
+    ScreeningInput in;
+    in.net = &base_;
+    in.params = bp_;
+    in.fit = &fit_;
+    in.x0 = bx0_;
+    if (o_.fit_base) in.free_params = free_params_;
+    in.boundary_columns = usable_boundaries_;
+    in.event_columns = usable_events_;
+    in.progress = o_.progress;
+    ScreeningOptions so = o_.screening;
+    so.families.clear();
+    for (EffectKind k : all_effect_kinds()) {
+      if (!wanted(k)) continue;
+      if (k == EffectKind::AmbientDynamics && ambient_refused_) continue;
+      so.families.push_back(k);
+    }
+    if (so.families.empty()) {  // an empty list means "every family" to the screening
+      say("residual: no family left to screen");
+      return;
+    }
+    say("residual: screening the effect dictionary (base refit projected out)");
+    L_.screening = screen_effects(in, so);
+    say(fmt::format("residual: {} regressors on {} cells, effective sample size {:.0f}", L_.screening.regressors, L_.screening.cells,
+                    L_.screening.effective_samples));
+  }
+
+  // Stage 6: joint refits of the best proposals.
+  void refit_candidates() {
+    CandidateContext ctx;
+    ctx.base = &base_;
+    ctx.base_params = bp_;
+    ctx.fit = &fit_;
+    for (const auto& r : fit_) fit_refit_.push_back(decimated(r, o_.refit_step_s));
+    ctx.fit_refit = &fit_refit_;
+    ctx.check = &check_;
+    ctx.measured_fit = meas_fit_;
+    ctx.measured_check = meas_check_;
+    ctx.before_check = L_.before_check;
+    ctx.base_bic = base_bic_;
+    ctx.fit_base = o_.fit_base;
+    ctx.free_params = free_params_;
+    ctx.effect_iterations = o_.max_iterations;
+    ctx.joint_iterations = o_.refine_iterations;
+    ctx.param_z = o_.param_z;
+    ctx.progress = o_.progress;
+    int fitted = 0;
+    for (const Proposal& p : L_.screening.proposals) {
+      if (fitted >= o_.max_candidates) {
+        CandidateResult c;
+        c.spec = p.spec;
+        c.label = effect_label(p.spec, base_);
+        c.effect = effect_name(p.spec.kind);
+        c.nodes = effect_nodes(p.spec, base_);
+        c.variant = p.variant;
+        c.explained_share = p.rss_fraction;
+        c.screening_score = p.score;
+        c.stability = p.stability;
+        c.status = "not fitted";
+        c.reason = fmt::format("screening score {:.0f} below the {} best proposals", p.score, o_.max_candidates);
+        L_.candidates.push_back(c);
+        continue;
+      }
+      ++fitted;
+      say(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(p.spec, base_), p.variant));
+      L_.candidates.push_back(refit_candidate(ctx, p));
+    }
+  }
+
+  // Stage 6b: a joint refit can land the BASE parameters in a better minimum than the base fit
+  // found (an effect the base absorbed pulls the staged fit into a valley); its gain would then be
+  // credited to the effect. So the base alone is refitted from the best refit's base values, and
+  // replaces the base model when it is better: every candidate is judged against the best base.
+  void repolish_base() {
+    if (!o_.fit_base) return;
+    int best = -1;
+    for (std::size_t i = 0; i < L_.candidates.size(); ++i) {
+      const auto& c = L_.candidates[i];
+      if (c.status == "fitted" && c.fit.rmse_k < L_.before_fit.rmse_k && (best < 0 || c.fit.rmse_k < L_.candidates[static_cast<std::size_t>(best)].fit.rmse_k))
+        best = static_cast<int>(i);
+    }
+    if (best < 0) return;
+    th::FitOptions fo;
+    fo.staged = false;
+    fo.start = L_.candidates[static_cast<std::size_t>(best)].values.head(base_.param_count());
+    fo.max_iterations = o_.refine_iterations;
+    th::FitResult f;
+    try {
+      f = th::fit_network(base_, fit_refit_, fo);
+    } catch (const std::exception& e) {
+      say(std::string("residual: base refit from the best candidate failed: ") + e.what());
+      return;
+    }
+    double rss_new = 0, rss_old = 0;
+    std::size_t n_new = 0, n_old = 0;
+    std::vector<Eigen::MatrixXd> res;
+    for (std::size_t r = 0; r < fit_.size(); ++r) res.push_back(evaluate_model(base_, f.params, fit_[r], nullptr, &f.initial_states[r]).residual_k);
+    rss_new = sum_of_squares(res, n_new);
+    rss_old = sum_of_squares(L_.fit_resid_before, n_old);
+    say(fmt::format("residual: the base alone refitted from the values of {}: rms {:.4g} K (was {:.4g} K)",
+                    L_.candidates[static_cast<std::size_t>(best)].label, std::sqrt(rss_new / static_cast<double>(std::max<std::size_t>(n_new, 1))),
+                    L_.before_fit.rmse_k));
+    if (!(rss_new < 0.99 * rss_old)) return;
+    say("residual: the base model is replaced by that better minimum; every candidate is judged against it");
+    bp_ = f.params;
+    bx0_ = f.initial_states;
+    L_.base_fit.params = bp_;
+    L_.base_fit.initial_states = bx0_;
+    L_.base_fit.rms_K = std::sqrt(rss_new / static_cast<double>(std::max<std::size_t>(n_new, 1)));
+    L_.base_fit.estimates = f.estimates;
+    L_.base_fit.covariance = f.covariance;
+    L_.base_repolished = true;
+    L_.fit_resid_before.clear();
+    L_.check_resid_before.clear();
+    L_.check_model_before.clear();
+    nodes_fit_.clear();
+    nodes_check_.clear();
+    evaluate_base_model();
+    test_base_residuals();
+    trace_heat();
+    for (auto& c : L_.candidates) {
+      if (c.status != "fitted") continue;
+      c.delta_bic = base_bic_ - c.bic;
+      c.check_factor = c.check.rmse_k > 0 ? L_.before_check.rmse_k / c.check.rmse_k : 0;
+    }
+  }
+
+  // Stage 7: the held-out decision.
+  void decide() {
+    const double floor = std::max(L_.noise_sigma_k, 1e-6);
+    something_to_explain_ = L_.before_check.rmse_k > o_.significant_rms_factor * floor ||
+                            L_.before_fit.rmse_k > o_.significant_rms_factor * floor;
+    int best_effect = -1, best_partial = -1;
+    for (std::size_t i = 0; i < L_.candidates.size(); ++i) {
+      CandidateResult& c = L_.candidates[i];
+      if (c.status != "fitted") continue;
+      const bool b_ok = c.delta_bic >= o_.bic_margin, z_ok = c.key_z >= o_.param_z, id_ok = c.identifiable,
+                 c_ok = c.check_factor >= o_.check_improvement;
+      // Explaining = the check error cut >= explained_factor, or brought to within 2x the noise.
+      // (Not "within 2x the candidate's own fit error": a candidate that fits badly everywhere
+      // would then explain by default.)
+      const double reach = 2.0 * floor;
+      const bool explains = c.check_factor >= o_.explained_factor || c.check.rmse_k <= reach;
+      std::string why = fmt::format("dBIC {:.1f} {} {:.0f}; key |z| {:.1f} {} {:.0f}; {}; check x{:.2f} {} {:.2f}", c.delta_bic,
+                                    b_ok ? ">=" : "<", o_.bic_margin, c.key_z, z_ok ? ">=" : "<", o_.param_z,
+                                    id_ok ? "identifiable" : "a parameter is not identifiable or at its bound", c.check_factor,
+                                    c_ok ? ">=" : "<", o_.check_improvement);
+      if (!(b_ok && z_ok && id_ok && c_ok)) {
+        c.status = "rejected";
+        c.reason = why;
+      } else if (!something_to_explain_) {
+        c.status = "rejected";
+        c.reason = why + fmt::format("; but the base model is already within {:.0f}x the noise ({:.3g} K): nothing to explain",
+                                     o_.significant_rms_factor, floor);
+      } else if (explains) {
+        c.status = "effect";
+        c.reason = why + fmt::format("; explains the check error (x{:.2f} >= {:.0f}, or {:.3g} K <= {:.3g} K)", c.check_factor,
+                                     o_.explained_factor, c.check.rmse_k, reach);
+      } else {
+        c.status = "partial";
+        c.reason = why + fmt::format("; explains part of it only (x{:.2f} < {:.0f} and {:.3g} K > {:.3g} K)", c.check_factor,
+                                     o_.explained_factor, c.check.rmse_k, reach);
+      }
+      auto better = [&](int j) {
+        if (j < 0) return true;
+        const auto& o = L_.candidates[static_cast<std::size_t>(j)];
+        return c.check.rmse_k < o.check.rmse_k * (1 - 1e-9) ||
+               (std::abs(c.check.rmse_k - o.check.rmse_k) <= 1e-9 * c.check.rmse_k && c.bic < o.bic);
+      };
+      if (c.status == "effect" && better(best_effect)) best_effect = static_cast<int>(i);
+      if (c.status == "partial" && better(best_partial)) best_partial = static_cast<int>(i);
+    }
+    L_.fit_resid_after = L_.fit_resid_before;
+    L_.check_resid_after = L_.check_resid_before;
+    L_.check_model_after = L_.check_model_before;
+    L_.after_fit = L_.before_fit;
+    L_.after_check = L_.before_check;
+    L_.chosen = best_effect >= 0 ? best_effect : best_partial;
+    if (L_.chosen >= 0) {
+      adopt(L_.candidates[static_cast<std::size_t>(L_.chosen)]);
+      const auto& c = L_.candidates[static_cast<std::size_t>(L_.chosen)];
+      L_.verdict = best_effect >= 0 ? "effect" : "partial";
+      L_.explanation = L_.verdict == "effect"
+                           ? fmt::format("{} explains the residual: check RMSE {:.4g} -> {:.4g} K (x{:.1f}), dBIC {:.1f}", c.label,
+                                         L_.before_check.rmse_k, L_.after_check.rmse_k, c.check_factor, c.delta_bic)
+                           : fmt::format("{} explains part of the residual only (check RMSE {:.4g} -> {:.4g} K, x{:.2f}); "
+                                         "reported, not claimed",
+                                         c.label, L_.before_check.rmse_k, L_.after_check.rmse_k, c.check_factor);
+      return;
+    }
+    if (!something_to_explain_ || (all_white_ && L_.before_check.rmse_k <= o_.significant_rms_factor * floor)) {
+      L_.verdict = L_.effect = L_.label = "none";
+      L_.explanation = fmt::format("the base model is within {:.0f}x the noise (check {:.3g} K, fit {:.3g} K, noise {:.3g} K){}; "
+                                   "no effect improves it significantly",
+                                   o_.significant_rms_factor, L_.before_check.rmse_k, L_.before_fit.rmse_k, floor,
+                                   all_white_ ? " and its residual is white" : "");
+      return;
+    }
+    L_.verdict = L_.effect = L_.label = "unexplained";
     std::vector<std::pair<double, std::string>> worst;
-    for (int c = 0; c < nc; ++c) {
-      const auto& d = L.diagnostics[c];
-      if (!d.white || d.all.rms > o.significant_rms_factor * L.noise_sigma_k) worst.emplace_back(-d.all.rms, d.node);
+    for (int c = 0; c < nc(); ++c) {
+      const auto& d = L_.diagnostics[static_cast<std::size_t>(c)];
+      if (!d.white || d.all.rms > o_.significant_rms_factor * floor) worst.emplace_back(-d.all.rms, d.node);
       for (const auto& t : d.correlations)
-        if (std::find(L.correlated_signals.begin(), L.correlated_signals.end(), t.signal) == L.correlated_signals.end())
-          L.correlated_signals.push_back(t.signal);
+        if (std::find(L_.correlated_signals.begin(), L_.correlated_signals.end(), t.signal) == L_.correlated_signals.end())
+          L_.correlated_signals.push_back(t.signal);
     }
     std::sort(worst.begin(), worst.end());
     for (const auto& w : worst)
-      if (std::find(L.nodes.begin(), L.nodes.end(), w.second) == L.nodes.end()) L.nodes.push_back(w.second);
-    L.explanation = "significant residual structure that no effect of the library explains (none passed BIC + check + "
-                    "significance); see the nodes and correlated signals";
+      if (std::find(L_.nodes.begin(), L_.nodes.end(), w.second) == L_.nodes.end()) L_.nodes.push_back(w.second);
+    L_.explanation = "significant residual structure that no effect of the library explains (no candidate passed BIC, "
+                     "significance, identifiability and the check); see the nodes and correlated signals";
   }
-  L.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start).count();
-  return L;
+
+  // The chosen candidate's model becomes the "after" model.
+  void adopt(const CandidateResult& c) {
+    L_.effect = c.effect;
+    L_.label = c.label;
+    L_.nodes = c.nodes;
+    L_.params = c.params;
+    L_.quantities = c.quantities;
+    L_.fit_resid_after.clear();
+    L_.check_resid_after.clear();
+    L_.check_model_after.clear();
+    for (const auto& r : fit_) L_.fit_resid_after.push_back(evaluate_candidate(c, r).residual_k);
+    for (const auto& r : check_) {
+      const Evaluation ev = evaluate_candidate(c, r);
+      L_.check_resid_after.push_back(ev.residual_k);
+      L_.check_model_after.push_back(ev.model_c);
+      if (c.spec.kind == EffectKind::SensorLag || c.spec.kind == EffectKind::SensorDrift) {
+        // measurement distortion = what the probe reads - the temperature of the node it sits on
+        Eigen::MatrixXd d = Eigen::MatrixXd::Zero(ev.model_c.rows(), nc());
+        for (int j = 0; j < nc(); ++j) {
+          const int true_node = base_.measurements[static_cast<std::size_t>(j)].node;
+          d.col(j) = ev.model_c.col(j) - ev.nodes_c.col(true_node);
+        }
+        L_.check_distortion.push_back(d);
+      }
+    }
+    L_.after_fit = error_metrics(L_.fit_resid_after, meas_fit_);
+    L_.after_check = error_metrics(L_.check_resid_after, meas_check_);
+  }
+
+  const th::Network& base_;
+  const Eigen::VectorXd start_;
+  const std::vector<th::Recording>& fit_;
+  const std::vector<th::Recording>& check_;
+  const LoopOptions& o_;
+  std::chrono::steady_clock::time_point t_start_;
+  LoopResult L_;
+  Eigen::VectorXd bp_;
+  std::vector<Eigen::VectorXd> bx0_;
+  int base_free_ = 0;
+  std::vector<int> free_params_, held_;
+  double base_bic_ = 0;
+  bool all_white_ = true, something_to_explain_ = false, ambient_refused_ = false;
+  std::vector<Eigen::MatrixXd> meas_fit_, meas_check_, nodes_fit_, nodes_check_;
+  std::vector<std::string> boundaries_, events_, usable_boundaries_, usable_events_;
+  std::vector<th::Recording> fit_refit_;
+};
+
+}  // namespace
+
+Evaluation evaluate_candidate(const CandidateResult& c, const th::Recording& rec) {
+  Eigen::MatrixXd ex;
+  if (c.transient_node >= 0) ex = transient_impulses_w(c.net, rec, c.transient_node, c.trigger);
+  return evaluate_model(c.net, c.values, rec, c.transient_node >= 0 ? &ex : nullptr, nullptr, c.rest_nodes);
+}
+
+LoopResult run_residual_loop(const th::Network& base, const Eigen::VectorXd& base_params, const std::vector<th::Recording>& fit,
+                             const std::vector<th::Recording>& check, const LoopOptions& opts) {
+  return ResidualLoop(base, base_params, fit, check, opts).run();
 }
 
 }  // namespace btsm::residual

@@ -1,18 +1,36 @@
 #pragma once
-// The closed loop: fit the base model, test its residuals, trace the unexplained heat, try the
-// effect library, and attribute the residual to one effect, to "none" (white residual) or to
-// "unexplained" (significant structure nothing in the library explains).
+// The closed loop: fit the base model, test and trace its residual, propose effects from the
+// trace, refit each proposal jointly with the base parameters, and attribute the residual.
 //
-// Decision rule (an effect is claimed only if ALL hold, so a clean recording yields "none"):
-//   * BIC on the fit recordings drops by at least `bic_margin` (parameters counted: free model
-//     parameters + effect parameters + initial states),
-//   * the check-recording RMSE improves by at least `check_improvement` (ratio before/after),
-//   * the effect's key parameter differs from its "no effect" value by >= `param_z` sigma,
-//   * with the effect, the check RMSE is at most `max_check_to_fit_ratio` x the fit RMSE (the
-//     effect explains the check residual, not just a part of it).
-// Among the claimed effects the one with the lowest check RMSE wins (BIC breaks ties).
+// Stages (ResidualLoop in residual_loop.cpp, one named function each):
+//   1. base model: the staged fit on the fit recordings (or the given values with --use-values)
+//   2. residual tests: whiteness per channel and mode, correlation with candidate signals
+//   3. trace: unexplained heat per node over time (inverse method, Tikhonov with GCV's alpha)
+//   4. refusals: families the fit recordings cannot identify, with the reason (no event in the
+//      fit part, a boundary that hardly varies or equals the ambient, a declared column missing)
+//   5. proposals: the linear screening of the effect dictionary (screening.hpp): per family the
+//      variant and nodes, their coefficients, the share of the residual they explain and how
+//      stable that choice is under resampling
+//   6. joint refits: each proposal (the best `max_candidates`) refitted with ALL base parameters
+//      from several starts (the trace regression's values; a second time constant or a zero
+//      start), the best kept
+//      then the base alone is refitted from the best refit's base values and replaces the base
+//      when that is a better minimum (a refit's gain is not credited to its effect when the
+//      base could have it alone)
+//   7. decision, on held-out evidence. A candidate passes when its BIC on the fit recordings
+//      drops by >= bic_margin, every key parameter is >= param_z sigma from "no effect" and
+//      identifiable (not at a bound), and the check RMSE improves >= check_improvement. It
+//      EXPLAINS the residual when the check RMSE is cut >= explained_factor (2x) or ends within
+//      2x the noise; a passing candidate that does not is `partial`.
+//      Verdicts: `effect` (the passing, explaining candidate with the lowest check RMSE),
+//      `partial` (the best partial one; reported, never claimed), `none` (no candidate passes
+//      and the residual is white noise or within significant_rms_factor x noise), `unexplained`
+//      (structure nothing explains). Nothing is claimed while the base model's check and fit
+//      errors are within significant_rms_factor x the noise: there is nothing to explain.
 #include "host/residual/effects.hpp"
+#include "host/residual/evaluation.hpp"
 #include "host/residual/residual_stats.hpp"
+#include "host/residual/screening.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
@@ -26,32 +44,22 @@
 namespace btsm::residual {
 
 struct LoopOptions {
-  double bic_margin = 10.0;          // required BIC decrease on the fit recordings
-  double check_improvement = 1.25;   // required ratio check RMSE before / after
-  double param_z = 3.0;              // required |key parameter| / sigma
-  double max_check_to_fit_ratio = 5.0;  // after the effect, check RMSE must be <= this x fit RMSE
-  double whiteness_p = 0.01;         // Ljung-Box level (Bonferroni-corrected over channels)
-  double significant_rms_factor = 2.0;  // residual rms above this x noise sigma = significant structure
-  double correlation_p = 1e-3;       // a candidate signal is "correlated" below this p-value
-  // Heat effects are tried at this many nodes, most traced heat first. Not fewer than a spindle
-  // network has nodes: a base fit that absorbs part of an effect can move the traced heat to the
-  // neighbours (seen: heat into the housing traced to the shaft and the rear bearing).
-  int max_heat_nodes = 4;
-  int max_sensor_columns = 2;        // sensor_lag tried on the columns most correlated with their rate
-  std::vector<EffectKind> effects;   // empty = the whole library
-  bool fit_base = true;              // false: use the given parameter values as the base model
-  double trace_step_s = 0;           // inverse-heat step for the trace; 0 = max(60 s, 10 samples)
-  int max_iterations = 60;           // Levenberg-Marquardt iterations per screening fit
-  int refine_candidates = 2;         // the best candidates (by BIC gain) are then refined ...
-  int refine_iterations = 600;       // ... with this many iterations (also the base fit's budget)
+  double bic_margin = 10.0;             // required BIC decrease on the fit recordings
+  double check_improvement = 1.25;      // required ratio check RMSE before / after (also for `partial`)
+  double explained_factor = 2.0;        // a cut below this is `partial` (unless the check error reaches the floor)
+  double param_z = 3.0;                 // required |key parameter| / sigma
+  double whiteness_p = 0.01;            // Ljung-Box level (Bonferroni-corrected over channels)
+  double significant_rms_factor = 2.0;  // residual rms above this x noise sigma = something to explain
+  double correlation_p = 1e-3;          // a candidate signal is "correlated" below this p-value
+  int max_candidates = 4;               // proposals refitted jointly (best screening score first)
+  std::vector<EffectKind> effects;      // families to try; empty = the whole library
+  bool fit_base = true;                 // false: use the given parameter values as the base model
+  double trace_step_s = 0;              // inverse-heat step for the trace; 0 = max(60 s, 10 samples)
+  int max_iterations = 60;              // Levenberg-Marquardt iterations of the effect-only start stage
+  int refine_iterations = 300;          // ... of each joint refit (and the base fit's budget)
+  double refit_step_s = 10;             // s, the refits run on the fit recordings decimated to this step
+  ScreeningOptions screening;
   std::function<void(const std::string&)> progress;
-};
-
-struct ErrorMetrics {
-  double rmse_k = 0;     // over all measured cells
-  double nmse_min = 0;   // worst channel, NMSE = 1 - |e|^2 / |y - mean y|^2 (paper Eq. A7)
-  double max_abs_k = 0;
-  std::size_t cells = 0;
 };
 
 struct ChannelDiagnostics {
@@ -71,45 +79,65 @@ struct NodeTrace {
 struct ParamReport {
   std::string name, unit;
   double value = 0, sigma = 0;
+  std::string status;            // identifiability of the fitted value
 };
 
 struct CandidateResult {
   std::string label;              // e.g. sensor_lag@T1
-  std::string effect;             // library name
+  std::string effect;             // family name
   std::vector<std::string> nodes;
-  std::vector<ParamReport> params;
+  std::string variant;            // e.g. "additive, every speed increase, tau 20 min"
+  EffectSpec spec;
+  // "effect" (passes and explains), "partial" (passes, explains part), "rejected" (fitted, fails
+  // a test), "refused" (the fit recordings cannot identify it), "not fitted" (proposed, below the
+  // `max_candidates` best), "failed" (the fit threw)
+  std::string status;
+  std::string reason;
+  // screening evidence
+  double explained_share = 0;     // of the base residual, linearised, after projection
+  double screening_score = 0;
+  double stability = 0;
+  // refit evidence
   ErrorMetrics fit, check;
-  double aic = 0, bic = 0, delta_bic = 0;  // delta = base - candidate (> 0 favours the candidate)
-  double check_factor = 0;                 // check rmse before / after
-  double key_z = 0;
-  bool accepted = false;
-  std::string reason;                      // why accepted / rejected, or the error if the fit failed
-  // the augmented model (for plots)
+  double bic = 0, delta_bic = 0;  // delta = base - candidate (> 0 favours the candidate)
+  double check_factor = 0;        // check rmse before / after
+  double key_z = 0;               // smallest |key parameter| / sigma
+  bool identifiable = false;
+  std::vector<ParamReport> params;       // the effect's network parameters
+  std::vector<EffectQuantity> quantities;  // in physical terms, with sign
+  // the augmented model (for evaluation and plots)
   thermal::Network net;
   Eigen::VectorXd values;
-  int transient_node = -1;                 // virtual node of heat_source_transient (impulse input)
+  int transient_node = -1;
+  TransientTrigger trigger = TransientTrigger::SpeedIncrease;
+  std::vector<int> rest_nodes;    // nodes at the ambient when a recording starts
+  double seconds = 0;
 };
 
 struct LoopResult {
-  std::string effect;                 // library name, "none" or "unexplained"
-  std::string label;                  // e.g. "sensor_lag@T1"
+  std::string verdict;                // "effect", "partial", "none", "unexplained"
+  std::string effect;                 // family name ("effect"/"partial"), else "none" / "unexplained"
+  std::string label;
   std::vector<std::string> nodes;
-  std::vector<ParamReport> params;    // of the chosen effect
+  std::vector<EffectQuantity> quantities;   // of the chosen (or partial) effect
+  std::vector<ParamReport> params;
   std::vector<std::string> correlated_signals;  // for "unexplained"
   std::string explanation;
   double noise_sigma_k = 0;
   ErrorMetrics before_fit, before_check, after_fit, after_check;
   thermal::FitResult base_fit;
+  bool base_repolished = false;       // the base was refitted from a candidate's values into a better minimum
   thermal::Network base_net;
   std::vector<std::string> columns;   // measured columns in order
   std::vector<ChannelDiagnostics> diagnostics;
   std::vector<NodeTrace> trace;
+  ScreeningResult screening;
   std::vector<CandidateResult> candidates;
-  int chosen = -1;                    // index into candidates
+  int chosen = -1;                    // index into candidates (effect or partial)
   // residuals (measured - model), per recording rows x columns: before and after
   std::vector<Eigen::MatrixXd> fit_resid_before, check_resid_before, fit_resid_after, check_resid_after;
   std::vector<Eigen::MatrixXd> check_model_before, check_model_after;  // model temperatures at the columns
-  std::vector<Eigen::MatrixXd> check_distortion;  // sensor-side effects: probe - node temperature, K
+  std::vector<Eigen::MatrixXd> check_distortion;  // sensor-side effects: reading - node temperature, K
   double seconds = 0;
 };
 
@@ -118,17 +146,7 @@ LoopResult run_residual_loop(const thermal::Network& base, const Eigen::VectorXd
                              const std::vector<thermal::Recording>& fit, const std::vector<thermal::Recording>& check,
                              const LoopOptions& opts = {});
 
-// Model temperatures at the measured columns and residuals (measured - model) for one recording,
-// with the initial state estimated by linear least squares (the response is affine in x0).
-struct Evaluation {
-  Eigen::MatrixXd model_c;     // rows x columns
-  Eigen::MatrixXd residual_k;  // rows x columns, NaN where not measured
-  Eigen::MatrixXd nodes_c;     // rows x nodes
-  Eigen::VectorXd x0_c;
-};
-Evaluation evaluate_model(const thermal::Network& net, const Eigen::VectorXd& params, const thermal::Recording& rec,
-                          const Eigen::MatrixXd* extra_heat_w = nullptr, const Eigen::VectorXd* x0_c = nullptr);
-
-ErrorMetrics error_metrics(const std::vector<Eigen::MatrixXd>& residual_k, const std::vector<Eigen::MatrixXd>& measured_c);
+// Evaluates a candidate's augmented model on a recording (its transient impulses included).
+Evaluation evaluate_candidate(const CandidateResult& c, const thermal::Recording& rec);
 
 }  // namespace btsm::residual

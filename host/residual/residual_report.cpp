@@ -24,7 +24,15 @@ nlohmann::json metrics_json(const ErrorMetrics& m) {
 
 nlohmann::json params_json(const std::vector<ParamReport>& ps) {
   nlohmann::json a = nlohmann::json::array();
-  for (const auto& p : ps) a.push_back({{"name", p.name}, {"unit", p.unit}, {"value", num(p.value)}, {"sigma", num(p.sigma)}});
+  for (const auto& p : ps)
+    a.push_back({{"name", p.name}, {"unit", p.unit}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"status", p.status}});
+  return a;
+}
+
+nlohmann::json quantities_json(const std::vector<EffectQuantity>& qs) {
+  nlohmann::json a = nlohmann::json::array();
+  for (const auto& q : qs)
+    a.push_back({{"name", q.name}, {"unit", q.unit}, {"value", num(q.value)}, {"sigma", num(q.sigma)}, {"meaning", q.meaning}});
   return a;
 }
 
@@ -38,9 +46,11 @@ std::string join(const std::vector<std::string>& v, const char* sep = ", ") {
 
 nlohmann::json to_json(const LoopResult& r) {
   nlohmann::json j;
+  j["verdict"] = r.verdict;
   j["effect"] = r.effect;
   j["label"] = r.label;
   j["nodes"] = r.nodes;
+  j["quantities"] = quantities_json(r.quantities);
   j["parameters"] = params_json(r.params);
   j["explanation"] = r.explanation;
   j["noise_sigma_K"] = num(r.noise_sigma_k);
@@ -53,12 +63,37 @@ nlohmann::json to_json(const LoopResult& r) {
   j["fit"] = {{"before", metrics_json(r.before_fit)}, {"after", metrics_json(r.after_fit)}};
   j["check"] = {{"before", metrics_json(r.before_check)}, {"after", metrics_json(r.after_check)}};
   j["correlated_signals"] = r.correlated_signals;
+  j["screening"] = {{"regressors", r.screening.regressors},
+                    {"cells", r.screening.cells},
+                    {"effective_samples", num(r.screening.effective_samples)},
+                    {"rss_base_K2", num(r.screening.rss_base_k2)}};
   j["candidates"] = nlohmann::json::array();
-  for (const auto& c : r.candidates)
-    j["candidates"].push_back({{"label", c.label}, {"effect", c.effect}, {"nodes", c.nodes}, {"check_rmse_K", num(c.check.rmse_k)},
-                               {"fit_rmse_K", num(c.fit.rmse_k)}, {"aic", num(c.aic)}, {"bic", num(c.bic)},
-                               {"delta_bic", num(c.delta_bic)}, {"check_factor", num(c.check_factor)}, {"key_z", num(c.key_z)},
-                               {"accepted", c.accepted}, {"reason", c.reason}, {"parameters", params_json(c.params)}});
+  for (const auto& c : r.candidates) {
+    const bool fitted = c.status == "effect" || c.status == "partial" || c.status == "rejected";
+    nlohmann::json cj = {{"label", c.label},
+                         {"effect", c.effect},
+                         {"nodes", c.nodes},
+                         {"variant", c.variant},
+                         {"status", c.status},
+                         {"accepted", c.status == "effect"},
+                         {"reason", c.reason},
+                         {"explained_share", num(c.explained_share)},
+                         {"screening_score", num(c.screening_score)},
+                         {"stability", num(c.stability)}};
+    if (fitted) {
+      cj["fit_rmse_K"] = num(c.fit.rmse_k);
+      cj["check_rmse_K"] = num(c.check.rmse_k);
+      cj["bic"] = num(c.bic);
+      cj["delta_bic"] = num(c.delta_bic);
+      cj["check_factor"] = num(c.check_factor);
+      cj["key_z"] = num(c.key_z);
+      cj["identifiable"] = c.identifiable;
+      cj["parameters"] = params_json(c.params);
+      cj["quantities"] = quantities_json(c.quantities);
+      cj["seconds"] = num(c.seconds);
+    }
+    j["candidates"].push_back(cj);
+  }
   j["diagnostics"] = nlohmann::json::array();
   for (const auto& d : r.diagnostics) {
     nlohmann::json cj = {{"column", d.column}, {"node", d.node}, {"rms_K", num(d.all.rms)}, {"lag1", num(d.all.lag1)},
@@ -101,15 +136,31 @@ std::string format_table(const LoopResult& r) {
     o << "\nUnexplained heat flow (inverse method on the residual, first fit recording), rms per node:\n";
     for (const auto& t : r.trace) o << fmt::format("  {:<16} {:>9.3f} W\n", t.node, t.rms_w);
   }
-  o << "\nCandidate effects (fit on --fit, scored on --check):\n";
-  o << fmt::format("  {:<36} {:>10} {:>11} {:>7} {:>9} {:>7} {:>5}\n", "effect", "fit [K]", "check [K]", "factor", "dBIC", "|z|", "claim");
-  for (const auto& c : r.candidates)
-    o << fmt::format("  {:<36} {:>10.4f} {:>11.4f} {:>7.2f} {:>9.1f} {:>7.1f} {:>5}\n", c.label, c.fit.rmse_k, c.check.rmse_k,
-                     c.check_factor, c.delta_bic, c.key_z, c.accepted ? "yes" : "no");
-  o << "\nVerdict: " << r.label;
+  o << fmt::format("\nProposals (linear screening of {} regressors, base refit projected out, effective samples {:.0f}) and "
+                   "their joint refits (fit on --fit, scored on --check):\n",
+                   r.screening.regressors, r.screening.effective_samples);
+  o << fmt::format("  {:<46} {:>8} {:>7} {:>9} {:>10} {:>7} {:>9} {:>6}  {}\n", "candidate", "explains", "stable", "fit [K]",
+                   "check [K]", "factor", "dBIC", "|z|", "status");
+  for (const auto& c : r.candidates) {
+    const bool fitted = c.status == "effect" || c.status == "partial" || c.status == "rejected";
+    if (c.status == "refused") {
+      o << fmt::format("  {:<46} {:>8} {:>7} {:>9} {:>10} {:>7} {:>9} {:>6}  refused: {}\n", c.label, "", "", "", "", "", "", "", c.reason);
+      continue;
+    }
+    o << fmt::format("  {:<46} {:>7.1f}% {:>6.0f}% ", c.label, 100 * c.explained_share, 100 * c.stability);
+    if (fitted)
+      o << fmt::format("{:>9.4f} {:>10.4f} {:>7.2f} {:>9.1f} {:>6.1f}  {}\n", c.fit.rmse_k, c.check.rmse_k, c.check_factor, c.delta_bic,
+                       c.key_z, c.status);
+    else
+      o << fmt::format("{:>9} {:>10} {:>7} {:>9} {:>6}  {}\n", "", "", "", "", "", c.status);
+    if (!c.variant.empty()) o << fmt::format("  {:<46} {}\n", "", c.variant);
+  }
+  o << "\nVerdict: " << r.verdict;
+  if (r.verdict == "effect" || r.verdict == "partial") o << " " << r.label;
   if (!r.nodes.empty()) o << "  (nodes: " << join(r.nodes) << ")";
   o << "\n  " << r.explanation << "\n";
-  for (const auto& p : r.params) o << fmt::format("  {:<32} = {:.5g} ± {:.2g} {}\n", p.name, p.value, p.sigma, p.unit);
+  for (const auto& q : r.quantities)
+    o << fmt::format("  {:<32} = {:+.5g} ± {:.2g} {}  ({})\n", q.name, q.value, q.sigma, q.unit, q.meaning);
   if (!r.correlated_signals.empty()) o << "  correlated signals: " << join(r.correlated_signals) << "\n";
   o << fmt::format("\n  {:<22} {:>10} {:>10} {:>10}\n", "errors", "RMSE [K]", "NMSE min", "max [K]");
   auto row = [&](const char* name, const ErrorMetrics& m) {
@@ -170,7 +221,8 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     for (std::size_t k = 0; k < rec.rows(); ++k) meas[k] += r.check_resid_before[0](static_cast<Eigen::Index>(k), c);
     p.series.push_back(rp::measured(node, t_h, meas));
     p.series.push_back(rp::model(node, t_h, column(r.check_model_before[0], c), "base model"));
-    if (r.chosen >= 0) p.series.push_back(rp::alternative(node, t_h, column(r.check_model_after[0], c), "with " + r.label));
+    if (r.chosen >= 0)
+      p.series.push_back(rp::alternative(node, t_h, column(r.check_model_after[0], c), (r.verdict == "partial" ? "partly, with " : "with ") + r.label));
     model_panels.push_back(p);
   }
   model_panels.push_back(rp::recording_speed_panel(rec));
@@ -182,9 +234,10 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     return p;
   };
   res_panels.push_back(residual_plot(r.check_resid_before, "Residuals of the base model (check recording " + rec_name + ")"));
-  if (r.chosen >= 0) res_panels.push_back(residual_plot(r.check_resid_after, "Residuals with " + r.label));
+  if (r.chosen >= 0)
+    res_panels.push_back(residual_plot(r.check_resid_after, (r.verdict == "partial" ? "Residuals with the partial explanation " : "Residuals with ") + r.label));
   if (!r.check_distortion.empty()) {
-    rp::Plot p{"Estimated measurement distortion (probe − node temperature)", rp::kTimeAxis, "distortion (K)", {}};
+    rp::Plot p{"Estimated measurement distortion (reading − node temperature)", rp::kTimeAxis, "distortion (K)", {}};
     for (int c = 0; c < nc; ++c) {
       if (r.check_distortion[0].col(c).cwiseAbs().maxCoeff() == 0) continue;
       p.series.push_back(rp::trace(node_of(c), t_h, column(r.check_distortion[0], c)));

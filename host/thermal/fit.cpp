@@ -36,7 +36,10 @@ class FitPipeline {
     fix_the_gauge();
     check_recordings_and_make_whole_runs();
     split_free_parameters();
-    for (std::size_t r = 0; r < recs_.size(); ++r) x0_whole_.push_back(state_from_row(net_, recs_[r], cols_[r], 0));
+    for (std::size_t r = 0; r < recs_.size(); ++r) {
+      x0_whole_.push_back(state_from_row(net_, recs_[r], cols_[r], 0));
+      for (int i : opts_.initial_state_at_ambient) x0_whole_.back()[i] = recs_[r].ambient_c.front();
+    }
     if (opts_.staged || any_free_without_start()) {
       const std::vector<Run> cooling_runs = stage1_cooling_equation_error();
       stage2_cooling_output_error(cooling_runs);
@@ -172,6 +175,11 @@ class FitPipeline {
     for (int i : free) pr.tf.push_back(transform_of(param(i)));
     pr.p = p_;
     pr.estimate_x0 = opts_.initial_state == InitialState::Estimate;
+    pr.x0_held.assign(static_cast<std::size_t>(n()), false);
+    for (int i : opts_.initial_state_at_ambient) {
+      if (i < 0 || i >= n()) throw std::invalid_argument("fit: initial_state_at_ambient: node index out of range");
+      pr.x0_held[static_cast<std::size_t>(i)] = true;
+    }
     pr.x0 = x0;
     // the gauge row only acts when some capacitance is free in this stage
     bool c_free = false;
@@ -278,7 +286,10 @@ class FitPipeline {
   void stage2_cooling_output_error(const std::vector<Run>& cooling_runs) {
     if (cooling_runs.empty() || free_cool_.empty()) return;
     std::vector<Eigen::VectorXd> x0;
-    for (const auto& run : cooling_runs) x0.push_back(state_from_row(net_, *run.rec, run.cols, run.begin));
+    for (const auto& run : cooling_runs) {
+      x0.push_back(state_from_row(net_, *run.rec, run.cols, run.begin));
+      for (int i : opts_.initial_state_at_ambient) x0.back()[i] = run.rec->ambient_c[run.begin];
+    }
     OutputErrorProblem pr = make_problem(cooling_runs, free_cool_, x0);
     run_stage("stage 2 (cooling output error)", pr);
   }

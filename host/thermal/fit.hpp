@@ -54,6 +54,9 @@ struct FitOptions {
   std::vector<std::string> free_only; // if not empty: fit only these parameters, hold the rest
   std::vector<std::string> hold;      // parameters held at their start value in addition to "fixed"
   std::vector<Eigen::MatrixXd> extra_heat_w;  // optional, per recording rows x nodes, W (known inputs)
+  // Nodes whose initial state is the first row's ambient in every recording, not estimated:
+  // states that are at rest when a recording starts (a residual effect's virtual transient state).
+  std::vector<int> initial_state_at_ambient;
   // Levenberg-Marquardt iterations of the final (joint) stage. 300 converges on the demo's
   // recordings (tests/data/demo-warmups: 96) and on clean module recordings (<= 160 over 8 seeds),
   // where 60 stopped early.

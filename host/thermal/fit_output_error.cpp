@@ -108,6 +108,9 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
   x = pr_.x0[ri];
   S.setZero();
   X.setIdentity();
+  // a held initial state has no sensitivity: its unknown stays where it started
+  for (std::size_t i = 0; i < pr_.x0_held.size(); ++i)
+    if (pr_.x0_held[i]) X(static_cast<Eigen::Index>(i), static_cast<Eigen::Index>(i)) = 0.0;
   for (std::size_t k = run.begin; k <= run.end; ++k) {
     const auto kr = static_cast<Eigen::Index>(k);
     for (std::size_t m = 0; m < run.cols.size(); ++m) {

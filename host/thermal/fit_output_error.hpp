@@ -55,6 +55,7 @@ struct OutputErrorProblem {
   std::vector<Transform> tf;
   Eigen::VectorXd p;                   // all parameter values
   bool estimate_x0 = true;
+  std::vector<bool> x0_held;           // per node: its initial state is not estimated (empty = none held)
   std::vector<Eigen::VectorXd> x0;
   double sum_c = kNaN;                 // J/K, capacitance gauge; NaN = none in this problem
   int n() const { return net->node_count(); }

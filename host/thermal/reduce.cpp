@@ -122,9 +122,13 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
   if (net.has_inputs())
     throw std::invalid_argument("reduce: the network uses declared boundary or event columns; the module's model has speed and "
                                 "ambient as its only inputs, so it cannot carry them");
-  if (net.has_driven_terms())
-    throw std::invalid_argument("reduce: the network has heat driven by a temperature difference; the balanced reduction "
-                                "needs the symmetric form of a passive network");
+  // heat driven by a node's own rise keeps G symmetric; a difference of other nodes does not
+  for (const auto& s : net.sources)
+    for (const auto* ts : {&s.operating, &s.cooling})
+      for (const auto& t : *ts)
+        if (t.driven && !((t.hot == s.node && t.cold == kAmbient) || (t.cold == s.node && t.hot == kAmbient)))
+          throw std::invalid_argument("reduce: source '" + s.name + "' is driven by a difference of other nodes; the balanced "
+                                      "reduction needs the symmetric form of a passive network");
   if (o.speeds_rpm.size() + 1 > kModelMaxBreakpoints)
     throw std::invalid_argument("reduce: at most " + std::to_string(kModelMaxBreakpoints - 1) + " operating speeds fit the firmware blob");
   for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {

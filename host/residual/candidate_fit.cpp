@@ -1,0 +1,323 @@
+// Joint refit of one proposed effect (see candidate_fit.hpp).
+#include "host/residual/candidate_fit.hpp"
+
+#include <fmt/core.h>
+
+#include <algorithm>
+#include <chrono>
+#include <cmath>
+#include <limits>
+
+namespace btsm::residual {
+namespace th = btsm::thermal;
+namespace {
+
+int largest_capacitance_param(const th::Network& net, const Eigen::VectorXd& p) {
+  int best = -1;
+  for (const auto& nd : net.nodes)
+    if (best < 0 || p(nd.capacitance_param) > p(best)) best = nd.capacitance_param;
+  return best;
+}
+
+std::vector<Eigen::MatrixXd> impulses_for(const AugmentedModel& am, const std::vector<th::Recording>& recs) {
+  std::vector<Eigen::MatrixXd> out;
+  if (am.transient_node < 0) return out;
+  for (const auto& r : recs) out.push_back(transient_impulses_w(am.net, r, am.transient_node, am.trigger));
+  return out;
+}
+
+bool has_time_constant(EffectKind k) {
+  return k == EffectKind::HeatSourceTransient || k == EffectKind::SensorLag || k == EffectKind::AmbientDynamics ||
+         k == EffectKind::LatentMass;
+}
+
+// The smallest |value| / sigma of the key parameters of one node of an effect (named "..._<node>").
+double node_z(const AugmentedModel& am, const th::FitResult& fr, const std::string& node) {
+  double z = std::numeric_limits<double>::infinity();
+  const std::string suffix = "_" + node;
+  for (const auto& name : am.key_params) {
+    if (name.size() < suffix.size() || name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0) continue;
+    const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
+    z = std::min(z, est.sigma > 0 ? std::abs(est.value) / est.sigma : (est.value != 0 ? 1e9 : 0.0));
+  }
+  return z;
+}
+
+}  // namespace
+
+th::Recording decimated(const th::Recording& rec, double step_s) {
+  std::vector<double> dts;
+  for (std::size_t k = 1; k < rec.rows(); ++k) dts.push_back(rec.time_s[k] - rec.time_s[k - 1]);
+  if (dts.empty()) return rec;
+  std::nth_element(dts.begin(), dts.begin() + static_cast<std::ptrdiff_t>(dts.size() / 2), dts.end());
+  const auto k = static_cast<std::size_t>(std::max(1L, std::lround(step_s / dts[dts.size() / 2])));
+  if (k <= 1) return rec;
+  th::Recording out;
+  out.source = rec.source;
+  out.channels = rec.channels;
+  out.meta = rec.meta;
+  std::vector<Eigen::Index> rows;
+  for (std::size_t r = 0; r < rec.rows(); r += k) rows.push_back(static_cast<Eigen::Index>(r));
+  out.temp_c.resize(static_cast<Eigen::Index>(rows.size()), rec.temp_c.cols());
+  for (std::size_t i = 0; i < rows.size(); ++i) {
+    const auto r = static_cast<std::size_t>(rows[i]);
+    out.time_s.push_back(rec.time_s[r]);
+    out.speed_rpm.push_back(rec.speed_rpm[r]);
+    out.ambient_c.push_back(rec.ambient_c[r]);
+    out.temp_c.row(static_cast<Eigen::Index>(i)) = rec.temp_c.row(rows[i]);
+  }
+  return out;
+}
+
+std::map<std::string, double> start_values(const th::Network& base, const Eigen::VectorXd& bp, const Proposal& p) {
+  std::map<std::string, double> v;
+  const auto& e = p.spec;
+  const auto coef = [&](std::size_t i) { return i < p.coefficients.size() && std::isfinite(p.coefficients[i]) ? p.coefficients[i] : 0.0; };
+  for (std::size_t i = 0; i < e.nodes.size(); ++i) {
+    const std::string nn = base.nodes[static_cast<std::size_t>(e.nodes[i])].name;
+    const double c = coef(i);
+    switch (e.kind) {
+      case EffectKind::HeatSourceTransient:
+        if (e.multiplicative) {
+          const double q0 = std::max(source_heat_at_w0(base, bp, e.nodes[i]), 1e-3);
+          v["a_transient_" + nn] = std::max(c / q0, 1e-3);
+        } else {
+          v["a_transient_" + nn] = std::max(c, 0.05);
+        }
+        break;
+      case EffectKind::TemperatureDependentHeat: v["k_heat_T_" + nn] = c; break;
+      case EffectKind::CoupledHeat: v["k_couple_" + nn] = c; break;
+      case EffectKind::ExtraHeatInput: v["q_extra_" + nn] = c; break;
+      case EffectKind::SecondBoundary:
+      case EffectKind::EventConductance: v["g_" + e.column + "_" + nn] = std::max(c, 1e-3); break;
+      case EffectKind::LatentMass: {
+        const double g = std::max(c, 1e-2);
+        v["g_latent_" + nn] = g;
+        v["C_latent_" + nn] = g * (e.tau_s > 0 ? e.tau_s : 1800.0);
+        break;
+      }
+      default: break;
+    }
+  }
+  if (e.kind == EffectKind::HeatSourceTransient) v["tau_transient"] = e.tau_s;
+  if (e.kind == EffectKind::SensorLag) v["tau_probe_" + e.column] = e.tau_s * std::clamp(coef(0), 0.3, 3.0);
+  if (e.kind == EffectKind::SensorDrift) v["d_" + e.column] = coef(0);
+  return v;
+}
+
+CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) {
+  const auto t0 = std::chrono::steady_clock::now();
+  const th::Network& base = *ctx.base;
+  const auto& fit = *ctx.fit;
+  const auto& refit = ctx.fit_refit ? *ctx.fit_refit : fit;
+  const auto& check = *ctx.check;
+  CandidateResult cr;
+  cr.spec = p.spec;
+  cr.label = effect_label(p.spec, base);
+  cr.effect = effect_name(p.spec.kind);
+  cr.nodes = effect_nodes(p.spec, base);
+  cr.variant = p.variant;
+  cr.explained_share = p.rss_fraction;
+  cr.screening_score = p.score;
+  cr.stability = p.stability;
+  auto say = [&](const std::string& s) {
+    if (ctx.progress) ctx.progress(s);
+  };
+  try {
+    // Starts. (1) the base fit with the screening's effect; (2) the screening's effect pinned and
+    // the base refitted around it: a base that absorbed part of the effect gives it back (the
+    // joint refit from (1) crawls through that valley); (3) for a family with a time constant,
+    // a second one on the better base. Each start ends with an effect-only fit; the joint refit
+    // runs from the best.
+    // (4) The cooling-first staged pipeline on the augmented network, from the data: where the
+    // base fit absorbed much of the effect into wrong base values, neither (1) nor (2) is near
+    // the joint optimum, and the staged pipeline needs no start (every family but a
+    // sensor lag: its probe state is not measured, which the equation-error starts need).
+    struct Start { Proposal p; bool pinned, on_best_base; const char* what; bool staged = false; };
+    std::vector<Start> starts{{p, false, false, "base fit"}};
+    if (ctx.fit_base) starts.push_back({p, true, false, "base refitted around the screening's effect"});
+    if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag) starts.push_back({p, false, false, "staged fit of base + effect from the data", true});
+    th::FitOptions fo;
+    fo.staged = false;
+    fo.relative_tolerance = 1e-8;
+    th::FitResult best;
+    AugmentedModel best_am;
+    EffectSpec best_spec = p.spec;
+    double best_rms = std::numeric_limits<double>::infinity();
+    Eigen::VectorXd best_base = ctx.base_params;
+    bool second_tau_added = false;
+    for (std::size_t s = 0; s < starts.size() + (second_tau_added ? 0 : 1); ++s) {
+      if (s == starts.size()) {
+        second_tau_added = true;
+        // the second time constant, on the base of the best start so far
+        if (!(has_time_constant(p.spec.kind) && p.spec.tau_s > 0)) break;
+        Proposal q = p;
+        q.spec.tau_s = p.spec.tau_s * 2.5;
+        starts.push_back({q, false, true, "second time constant"});
+      }
+      const Eigen::VectorXd& base_values = starts[s].on_best_base ? best_base : ctx.base_params;
+      AugmentedModel am = augment(base, base_values, starts[s].p.spec, start_values(base, base_values, starts[s].p));
+      if (starts[s].staged) {
+        th::FitOptions fs;
+        fs.staged = true;
+        fs.start = am.params;
+        fs.max_iterations = ctx.joint_iterations;
+        fs.extra_heat_w = impulses_for(am, refit);
+        fs.initial_state_at_ambient = am.rest_nodes;
+        if (am.adds_free_capacitance && std::isfinite(base.sum_capacitance_J_per_K)) {
+          const int c = largest_capacitance_param(base, ctx.base_params);
+          if (c >= 0 && !base.params[static_cast<std::size_t>(c)].fixed) fs.hold.push_back(base.params[static_cast<std::size_t>(c)].name);
+        }
+        th::FitResult f;
+        try {
+          f = th::fit_network(am.net, refit, fs);
+        } catch (const std::exception& e) {
+          say(fmt::format("residual:     {} start {} ({}) failed: {}", cr.label, s + 1, starts[s].what, e.what()));
+          continue;
+        }
+        say(fmt::format("residual:     {} start {} ({}): rms {:.4g} K", cr.label, s + 1, starts[s].what, f.rms_K));
+        if (f.rms_K < best_rms) {
+          best_rms = f.rms_K;
+          best_base = f.params.head(base.param_count());
+          best = std::move(f);
+          best_am = std::move(am);
+          best_spec = starts[s].p.spec;
+        }
+        continue;
+      }
+      if (starts[s].pinned) {
+        th::FitOptions f0 = fo;
+        f0.start = am.params;
+        f0.hold = am.effect_params;
+        f0.max_iterations = ctx.joint_iterations;
+        f0.extra_heat_w = impulses_for(am, refit);
+        f0.initial_state_at_ambient = am.rest_nodes;
+        if (am.adds_free_capacitance && std::isfinite(base.sum_capacitance_J_per_K)) {
+          const int c = largest_capacitance_param(base, ctx.base_params);
+          if (c >= 0 && !base.params[static_cast<std::size_t>(c)].fixed) f0.hold.push_back(base.params[static_cast<std::size_t>(c)].name);
+        }
+        const th::FitResult f = th::fit_network(am.net, refit, f0);
+        say(fmt::format("residual:     {} start {}: the base refitted around the screening's effect: rms {:.4g} K", cr.label, s + 1, f.rms_K));
+        am.params = f.params;
+      }
+      th::FitOptions f1 = fo;
+      f1.start = am.params;
+      f1.free_only = am.effect_params;
+      f1.max_iterations = ctx.effect_iterations;
+      f1.extra_heat_w = impulses_for(am, refit);
+      f1.initial_state_at_ambient = am.rest_nodes;
+      th::FitResult f = th::fit_network(am.net, refit, f1);
+      say(fmt::format("residual:     {} start {} ({}{}): rms {:.4g} K with the effect alone", cr.label, s + 1, starts[s].what,
+                      starts[s].p.spec.tau_s > 0 ? fmt::format(", tau {:.0f} s", starts[s].p.spec.tau_s) : std::string(), f.rms_K));
+      if (f.rms_K < best_rms) {
+        best_rms = f.rms_K;
+        best_base = f.params.head(base.param_count());
+        best = std::move(f);
+        best_am = std::move(am);
+        best_spec = starts[s].p.spec;
+      }
+    }
+    AugmentedModel am = std::move(best_am);
+    EffectSpec spec = best_spec;
+    // The joint refit of every parameter (or, with a fixed base, of the effect alone) from `start`.
+    const auto joint = [&](const AugmentedModel& a, const Eigen::VectorXd& start) {
+      th::FitOptions f2 = fo;
+      f2.start = start;
+      f2.relative_tolerance = 1e-9;
+      f2.max_iterations = ctx.joint_iterations;
+      f2.extra_heat_w = impulses_for(a, refit);
+      f2.initial_state_at_ambient = a.rest_nodes;
+      if (!ctx.fit_base) f2.free_only = a.effect_params;
+      if (a.adds_free_capacitance && std::isfinite(base.sum_capacitance_J_per_K)) {
+        // the new capacitance is not part of the known total: hold the largest base capacitance
+        // at its base-fit value instead (the same scale, fixed another way)
+        const int c = largest_capacitance_param(base, ctx.base_params);
+        if (c >= 0 && !base.params[static_cast<std::size_t>(c)].fixed) f2.hold.push_back(base.params[static_cast<std::size_t>(c)].name);
+      }
+      return th::fit_network(a.net, refit, f2);
+    };
+    th::FitResult fr = best;
+    if (ctx.fit_base) {
+      fr = joint(am, best.params);
+      say(fmt::format("residual:     {} joint refit: rms {:.4g} K, {} ({} iterations)", cr.label, fr.rms_K,
+                      fr.converged ? "converged" : "NOT converged", fr.stages.empty() ? 0 : fr.stages.back().iterations));
+    }
+    // Backward elimination of nodes: the screening proposes up to max_nodes nodes from a linear
+    // view; a node whose share of the effect the joint refit cannot tell from zero is dropped and
+    // the rest refitted, so an effect is named at the nodes the data support, not at every node
+    // that helped the linear screening a little.
+    while (spec.nodes.size() > 1) {
+      std::size_t weakest = 0;
+      double weakest_z = std::numeric_limits<double>::infinity();
+      for (std::size_t i = 0; i < spec.nodes.size(); ++i) {
+        const double z = node_z(am, fr, base.nodes[static_cast<std::size_t>(spec.nodes[i])].name);
+        if (z < weakest_z) {
+          weakest_z = z;
+          weakest = i;
+        }
+      }
+      if (!(weakest_z < ctx.param_z)) break;
+      EffectSpec fewer = spec;
+      fewer.nodes.erase(fewer.nodes.begin() + static_cast<std::ptrdiff_t>(weakest));
+      std::map<std::string, double> values;
+      for (const auto& name : am.effect_params) values[name] = fr.params[am.net.param_index(name)];
+      if (spec.kind == EffectKind::HeatSourceTransient) {
+        // keep the decay time: the dropped coupling's share moves to the decay path
+        const double g = values["g_transient_" + base.nodes[static_cast<std::size_t>(spec.nodes[weakest])].name];
+        values["g_transient_decay"] += g;
+      }
+      AugmentedModel a2 = augment(base, fr.params.head(base.param_count()), fewer, values);
+      th::FitResult f2 = joint(a2, a2.params);
+      say(fmt::format("residual:     {}: {} dropped (|z| {:.1f} < {:.0f}), refit rms {:.4g} K", cr.label,
+                      base.nodes[static_cast<std::size_t>(spec.nodes[weakest])].name, weakest_z, ctx.param_z, f2.rms_K));
+      spec = fewer;
+      am = std::move(a2);
+      fr = std::move(f2);
+    }
+    cr.spec = spec;
+    cr.label = effect_label(spec, base);
+    cr.nodes = effect_nodes(spec, base);
+    cr.net = am.net;
+    cr.values = fr.params;
+    cr.transient_node = am.transient_node;
+    cr.trigger = am.trigger;
+    cr.rest_nodes = am.rest_nodes;
+    // evidence on the fit recordings
+    std::vector<Eigen::MatrixXd> rf, rc;
+    const std::vector<Eigen::MatrixXd> imp_fit = impulses_for(am, fit);
+    for (std::size_t r = 0; r < fit.size(); ++r)
+      rf.push_back(evaluate_model(cr.net, cr.values, fit[r], imp_fit.empty() ? nullptr : &imp_fit[r], &fr.initial_states[r]).residual_k);
+    // (the refit's initial states: the decimated recordings start at the same row)
+    for (const auto& r : check) rc.push_back(evaluate_candidate(cr, r).residual_k);
+    cr.fit = error_metrics(rf, ctx.measured_fit);
+    cr.check = error_metrics(rc, ctx.measured_check);
+    std::size_t nn = 0;
+    const double rss = sum_of_squares(rf, nn);
+    const int k = fr.free_parameter_count + cr.net.node_count() * static_cast<int>(fit.size());
+    cr.bic = bic(rss, nn, k);
+    cr.delta_bic = ctx.base_bic - cr.bic;
+    cr.check_factor = cr.check.rmse_k > 0 ? ctx.before_check.rmse_k / cr.check.rmse_k : 0;
+    cr.key_z = std::numeric_limits<double>::infinity();
+    for (const auto& name : am.key_params) {
+      const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
+      const double z = est.sigma > 0 ? std::abs(est.value) / est.sigma : (est.value != 0 ? 1e9 : 0.0);
+      cr.key_z = std::min(cr.key_z, z);
+    }
+    if (!std::isfinite(cr.key_z)) cr.key_z = 0;
+    cr.identifiable = true;
+    for (const auto& name : am.effect_params) {
+      const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
+      cr.params.push_back({est.name, est.unit, est.value, est.sigma, est.at_bound ? "at its bound" : th::identifiability_name(est.status)});
+      if (est.at_bound || est.status == th::Identifiability::NotIdentifiable) cr.identifiable = false;
+    }
+    cr.quantities = effect_quantities(am, spec, base, fr.params, fr.covariance);
+    cr.status = "fitted";
+  } catch (const std::exception& e) {
+    cr.status = "failed";
+    cr.reason = std::string("fit failed: ") + e.what();
+  }
+  cr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  return cr;
+}
+
+}  // namespace btsm::residual

@@ -1,0 +1,47 @@
+#pragma once
+// Stage 6 of the residual loop: one proposal refitted jointly with the base parameters and scored
+// on the fit recordings (BIC, parameter significance, identifiability) and the held-out check
+// recordings (RMSE before/after).
+#include "host/residual/residual_loop.hpp"
+#include "host/residual/screening.hpp"
+
+#include <functional>
+#include <string>
+#include <vector>
+
+namespace btsm::residual {
+
+struct CandidateContext {
+  const thermal::Network* base = nullptr;
+  Eigen::VectorXd base_params;
+  const std::vector<thermal::Recording>* fit = nullptr;
+  // the fit recordings the refits run on (decimated: thermal responses are smooth and the cost of
+  // a refit is linear in rows); the evidence is always computed on `fit` itself
+  const std::vector<thermal::Recording>* fit_refit = nullptr;
+  const std::vector<thermal::Recording>* check = nullptr;
+  std::vector<Eigen::MatrixXd> measured_fit, measured_check;
+  ErrorMetrics before_check;
+  double base_bic = 0;
+  std::vector<int> free_params;     // base parameters the refit may move (Proposal::base_shift order)
+  bool fit_base = true;             // false: only the effect's parameters are fitted
+  int effect_iterations = 60;       // Levenberg-Marquardt iterations of each start's effect-only stage
+  int joint_iterations = 300;       // ... of the joint refit from the best start
+  double param_z = 3.0;             // a node whose key parameter is below this |value| / sigma is dropped
+  std::function<void(const std::string&)> progress;
+};
+
+// Refits `p` from several starts, each an effect-only fit first: the screening's coefficients on the
+// base fit and on the base shifted as the screening's regression says (what the base absorbed,
+// given back), and for a family with a time constant a second time constant; the joint refit of
+// every parameter then runs from the best of them. Fills the candidate's evidence; status and
+// reason are left to the decision. A failing fit gives status "failed" with the error as the reason.
+CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p);
+
+// Every k-th row of a recording with k = the step that reaches `step_s` (1: the recording itself).
+// The speed on a kept row holds until the next kept row, so a speed change moves by < k samples.
+thermal::Recording decimated(const thermal::Recording& rec, double step_s);
+
+// The augmented model's start values from the screening's linear coefficients.
+std::map<std::string, double> start_values(const thermal::Network& base, const Eigen::VectorXd& base_params, const Proposal& p);
+
+}  // namespace btsm::residual
