@@ -44,6 +44,7 @@ enum class MsgType : uint8_t {
   ModelRead = 0x47,
   Reboot = 0x48,
   GetConfig = 0x49,  // extension: read one configuration value back
+  ModelAuth = 0x4A,  // proves the device key before the module writes any byte of an upload
 };
 
 inline uint8_t type_code(MsgType t) { return static_cast<uint8_t>(t); }
@@ -69,6 +70,7 @@ inline const char* msg_type_name(uint8_t type) {
     case MsgType::ModelRead: return "MODEL_READ";
     case MsgType::Reboot: return "REBOOT";
     case MsgType::GetConfig: return "GET_CONFIG";
+    case MsgType::ModelAuth: return "MODEL_AUTH";
   }
   return nullptr;
 }
@@ -79,9 +81,10 @@ enum class Nack : uint8_t {
   Ok = 0,
   UnknownType = 1,   // message type not handled by this firmware
   BadLength = 2,     // payload length wrong for the type (decode_X failed on length)
-  NoSession = 3,     // MODEL_CHUNK/COMMIT without a MODEL_BEGIN (or after a failed one)
+  NoSession = 3,     // MODEL_AUTH without MODEL_BEGIN, MODEL_CHUNK/COMMIT without an accepted
+                     // MODEL_AUTH (or after a failed one)
   BadOffset = 4,     // chunk/read offset not where expected or beyond the blob
-  AuthFailed = 5,    // HMAC tag wrong, or nonce already used
+  AuthFailed = 5,    // HMAC tag (MODEL_AUTH or MODEL_COMMIT) wrong, or no device key
   BlobCrc = 6,       // CRC-32 of received blob != MODEL_BEGIN's (or blob-internal CRC)
   BlobVersion = 7,   // blob magic/version not understood by this firmware
   BlobInvalid = 8,   // NaN, unstable pole, out-of-range gains
@@ -116,7 +119,7 @@ inline const char* nack_description(uint8_t code) {
     case Nack::Ok: return "accepted";
     case Nack::UnknownType: return "the module does not know this message type";
     case Nack::BadLength: return "payload length is wrong for this message type";
-    case Nack::NoSession: return "no model upload in progress (send MODEL_BEGIN first)";
+    case Nack::NoSession: return "no authenticated model upload in progress (MODEL_BEGIN and MODEL_AUTH first)";
     case Nack::BadOffset: return "offset is not the next expected one or lies beyond the blob";
     case Nack::AuthFailed: return "HMAC check failed (wrong device key or stale nonce)";
     case Nack::BlobCrc: return "model blob CRC-32 mismatch";
@@ -388,6 +391,16 @@ struct ModelCommit {
   uint8_t hmac[kHmacSize];  // HMAC-SHA256(device key, nonce || blob)
 };
 
+// MODEL_AUTH 0x4A, 32 bytes: sent after AUTH_CHALLENGE, before the first MODEL_CHUNK. The module
+// writes no EEPROM byte of an upload until this tag checks out; a wrong tag ends the session.
+//   hmac = HMAC-SHA256(device key, nonce || context), context = encode_model_auth_context():
+//   0x4A (this type, which keeps the tag apart from a commit tag), total_len u16, blob_crc32 u32,
+//   the values of the MODEL_BEGIN the nonce answered.
+struct ModelAuth {
+  uint8_t hmac[kHmacSize];
+};
+const uint8_t kModelAuthContextSize = 7;
+
 // MODEL_READ 0x47, 3 bytes.
 struct ModelRead {
   uint16_t offset;
@@ -612,6 +625,25 @@ inline bool decode_model_commit(const uint8_t* p, uint8_t len, ModelCommit& m) {
   return true;
 }
 
+inline uint8_t encode_model_auth(const ModelAuth& m, uint8_t* p) {
+  detail::copy_bytes(p, m.hmac, kHmacSize);
+  return kHmacSize;
+}
+
+inline bool decode_model_auth(const uint8_t* p, uint8_t len, ModelAuth& m) {
+  if (len != kHmacSize) return false;
+  detail::copy_bytes(m.hmac, p, kHmacSize);
+  return true;
+}
+
+// The bytes MODEL_AUTH's tag covers after the nonce (kModelAuthContextSize); host and module
+// build them here, so both sides sign the same bytes in the same order.
+inline void encode_model_auth_context(uint16_t total_len, uint32_t blob_crc32, uint8_t* out) {
+  out[0] = static_cast<uint8_t>(MsgType::ModelAuth);
+  put_le16(out + 1, total_len);
+  put_le32(out + 3, blob_crc32);
+}
+
 inline bool model_read_valid(const ModelRead& m) {
   return m.len != 0 && m.len <= kMaxModelData &&
          static_cast<uint32_t>(m.offset) + m.len <= kMaxModelBlobSize;
@@ -665,7 +697,8 @@ inline bool payload_length_range(uint8_t type, uint8_t& min_len, uint8_t& max_le
     case MsgType::Reboot: min_len = max_len = 0; return true;
     case MsgType::SetSpeed: min_len = max_len = 2; return true;
     case MsgType::ModelBegin: min_len = max_len = 6; return true;
-    case MsgType::ModelCommit: min_len = max_len = kHmacSize; return true;
+    case MsgType::ModelCommit:
+    case MsgType::ModelAuth: min_len = max_len = kHmacSize; return true;
     case MsgType::ModelRead: min_len = max_len = 3; return true;
     case MsgType::GetConfig: min_len = max_len = 1; return true;
   }

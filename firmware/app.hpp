@@ -27,7 +27,7 @@
 namespace btsm {
 
 static constexpr uint8_t kFirmwareMajor = 0;
-static constexpr uint8_t kFirmwareMinor = 1;
+static constexpr uint8_t kFirmwareMinor = 2;
 static constexpr uint8_t kFirmwarePatch = 0;
 
 template <class Board>
@@ -350,6 +350,13 @@ class App {
     queue_frame(wire::MsgType::Ack, seq, wire::encode_ack(a, out_payload()));
   }
 
+  // The request's ACK waits until the EEPROM writes it queued are done (on_store_writes_done).
+  BTSM_NOINLINE void defer_ack(uint8_t seq, uint8_t type) {
+    deferred_seq_ = seq;
+    deferred_type_ = type;
+    ack_after_write_ = true;
+  }
+
   void send_deferred_ack() {
     ack_after_write_ = false;
     send_ack(deferred_seq_, deferred_type_, wire::Nack::Ok, 0);
@@ -424,10 +431,7 @@ class App {
         config_.set(m.key, m.value);
         apply_config();
         save_config();
-        deferred_seq_ = seq;
-        deferred_type_ = type;
-        ack_after_write_ = true;  // ACK once the record is in EEPROM
-        return;
+        return defer_ack(seq, type);  // ACK once the record is in EEPROM
       }
       case wire::MsgType::GetConfig: {
         wire::GetConfig m;
@@ -442,16 +446,14 @@ class App {
         diagnosis_.acknowledge();
         return send_ack(seq, type, wire::Nack::Ok, 0);
       case wire::MsgType::ModelBegin: return model_begin(seq, type, p, len, now);
+      case wire::MsgType::ModelAuth: return model_auth(seq, type, p);
       case wire::MsgType::ModelChunk: {
         wire::ModelChunk m;
         if (!wire::decode_model_chunk(p, len, m)) return send_ack(seq, type, wire::Nack::BadOffset, 0);
         uint16_t detail = 0;
         const wire::Nack r = store_.chunk(m.offset, m.data, m.len, detail);
         if (r != wire::Nack::Ok) return send_ack(seq, type, r, detail);
-        deferred_seq_ = seq;
-        deferred_type_ = type;
-        ack_after_write_ = true;  // ACK once the chunk is in EEPROM
-        return;
+        return defer_ack(seq, type);  // ACK once the chunk is in EEPROM
       }
       case wire::MsgType::ModelCommit:
         // The tag stays in the decoder buffer: no byte is pushed until run_commit() is done.
@@ -520,10 +522,9 @@ class App {
       return send_ack(seq, type, wire::Nack::BadLength, eeprom_layout::kBlobSize);
     uint8_t rec[device_key::kRecordSize];
     board_.identity.read_key_record(rec, device_key::kRecordSize);
-    if (!device_key::record_valid(rec)) {
-      secure_zero(rec, sizeof rec);
-      return send_ack(seq, type, wire::Nack::AuthFailed, 1);  // no key: model writes refused
-    }
+    const bool have_key = device_key::record_valid(rec);
+    secure_zero(rec, sizeof rec);
+    if (!have_key) return send_ack(seq, type, wire::Nack::AuthFailed, 1);  // no key: model writes refused
     // Fresh nonce: SHA-256 over conversion-noise bits, a counter that never repeats within a
     // boot, the boot count and timer entropy; first 16 bytes.
     uint8_t seed[16];
@@ -534,11 +535,20 @@ class App {
     put_le32(seed + 12, now);
     wire::AuthChallenge ch;
     store_.derive_nonce(seed, ch.nonce);
-    const wire::Nack r = store_.begin(m.total_len, m.blob_crc32, ch.nonce, wire::kNonceSize,
-                                      rec + device_key::kOffsetKey, static_cast<uint8_t>(device_key::kKeySize));
-    secure_zero(rec, sizeof rec);
+    const wire::Nack r = store_.begin(m.total_len, m.blob_crc32, ch.nonce);
     if (r != wire::Nack::Ok) return send_ack(seq, type, r, r == wire::Nack::BadLength ? eeprom_layout::kBlobSize : 0);
     queue_frame(wire::MsgType::AuthChallenge, seq, wire::encode_auth_challenge(ch, out_payload()));
+  }
+
+  // MODEL_AUTH: the payload is the tag (its length was checked). A session exists only after a
+  // MODEL_BEGIN that found a valid key record, so the record is valid here.
+  void model_auth(uint8_t seq, uint8_t type, const uint8_t* tag) {
+    uint8_t rec[device_key::kRecordSize];
+    board_.identity.read_key_record(rec, device_key::kRecordSize);
+    const wire::Nack r = store_.authenticate(tag, rec + device_key::kOffsetKey, static_cast<uint8_t>(device_key::kKeySize));
+    secure_zero(rec, sizeof rec);
+    if (r != wire::Nack::Ok) return send_ack(seq, type, r, 0);
+    defer_ack(seq, type);  // ACK once the target slot's commit marker is erased
   }
 
   Board& board_;

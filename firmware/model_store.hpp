@@ -6,12 +6,15 @@
 // incrementally, and blobs are parsed from EEPROM field by field (the common decode() wants the
 // whole blob in RAM). The parsed model is checked with the common validate().
 //
-// Upload: begin() erases the target slot's commit marker and starts
-// HMAC-SHA256(device key, nonce || blob); chunks must arrive in order; commit() checks the tag
-// (constant time), the MODEL_BEGIN CRC-32 against the bytes read back from EEPROM, then parses and
-// validates the blob into the caller's model. Only then are sequence, CRC and the commit marker
-// written (marker last). Any failure leaves the old slot active; the nonce is single-use (every
-// begin() needs a fresh one and commit() ends the session whatever its outcome).
+// Upload: begin() keeps the nonce and the announced length and CRC and writes nothing.
+// authenticate() checks MODEL_AUTH's tag HMAC-SHA256(device key, nonce || context) (context =
+// wire::encode_model_auth_context of that length and CRC); only a valid tag erases the target
+// slot's commit marker and starts HMAC-SHA256(device key, nonce || blob), so a host without the
+// key cannot change a single EEPROM byte. Chunks must then arrive in order; commit() checks the
+// tag (constant time), the MODEL_BEGIN CRC-32 against the bytes read back from EEPROM, then parses
+// and validates the blob into the caller's model. Only then are sequence, CRC and the commit
+// marker written (marker last). Any failure leaves the old slot active; the nonce is single-use
+// (every begin() needs a fresh one; a failed authenticate() and every commit() end the session).
 #ifndef BTSM_FIRMWARE_MODEL_STORE_HPP
 #define BTSM_FIRMWARE_MODEL_STORE_HPP
 
@@ -116,19 +119,34 @@ class ModelStore {
     secure_zero(digest, sizeof digest);
   }
 
-  // Opens a session: `nonce` (already sent to the host), `key` the device key.
-  Nack begin(uint16_t total_len, uint32_t blob_crc, const uint8_t* nonce, uint8_t nonce_len,
-             const uint8_t* key, uint8_t key_len) {
+  // Opens a session for a blob of total_len bytes with CRC-32 blob_crc and the nonce already sent
+  // to the host (kNonceSize bytes). Writes nothing: the session waits for authenticate().
+  Nack begin(uint16_t total_len, uint32_t blob_crc, const uint8_t* nonce) {
     if (busy()) return Nack::Busy;
     if (total_len != eeprom_layout::kBlobSize) return Nack::BadLength;
-    target_slot_ = active_slot_ == 0 ? 1 : 0;
-    session_ = kReceiving;
-    received_ = 0;
+    session_ = kChallenged;
     expected_crc_ = blob_crc;
+    memcpy(nonce_, nonce, kNonceSize);
+    return Nack::Ok;
+  }
+
+  // MODEL_AUTH: `tag` must be HMAC-SHA256(key, nonce || auth context). A wrong tag ends the
+  // session (the nonce is spent); a right one starts the blob MAC and erases the target slot's
+  // commit marker before any blob byte changes -- the first EEPROM write of the upload.
+  BTSM_NOINLINE Nack authenticate(const uint8_t* tag, const uint8_t* key, uint8_t key_len) {
+    if (session_ != kChallenged) return Nack::NoSession;
+    if (busy()) return Nack::Busy;
+    session_ = kNoSession;
+    uint8_t context[wire::kModelAuthContextSize];
+    wire::encode_model_auth_context(eeprom_layout::kBlobSize, expected_crc_, context);
+    start_mac(key, key_len);
+    mac_.update(context, sizeof context);
+    if (!mac_matches(tag)) return Nack::AuthFailed;
+    start_mac(key, key_len);
+    session_ = kReceiving;
+    target_slot_ = active_slot_ == 0 ? 1 : 0;
+    received_ = 0;
     running_crc_ = 0;
-    mac_.init(key, key_len);
-    mac_.update(nonce, nonce_len);
-    // Erase the commit marker of the target slot before any blob byte changes.
     const uint8_t erased[2] = {0xFF, 0xFF};
     writer_.queue(eeprom_layout::slot_addr(target_slot_), erased, 2);
     return Nack::Ok;
@@ -259,17 +277,28 @@ class ModelStore {
   }
 
  private:
-  enum Session : uint8_t { kNoSession, kReceiving };
+  enum Session : uint8_t { kNoSession, kChallenged, kReceiving };
   static constexpr uint8_t kNoSlot = 0xFF;
   // No model speed is 0xFFFF (wire::kSpeedFromTach is not a speed, the tach saturates at 65534).
   static constexpr uint16_t kNoCoefficients = 0xFFFF;
 
-  BTSM_NOINLINE Nack verify_tag_and_bytes(const uint8_t* tag, uint16_t& detail) {
+  // HMAC-SHA256(key, nonce || ...): the start of both tags of a session.
+  BTSM_NOINLINE void start_mac(const uint8_t* key, uint8_t key_len) {
+    mac_.init(key, key_len);
+    mac_.update(nonce_, kNonceSize);
+  }
+
+  // Finishes the MAC and compares it with `tag` in constant time.
+  BTSM_NOINLINE bool mac_matches(const uint8_t* tag) {
     uint8_t expected[kHmacSha256Size];
     mac_.final(expected);
-    const bool tag_ok = constant_time_equal(expected, tag, kHmacSha256Size);
+    const bool ok = constant_time_equal(expected, tag, kHmacSha256Size);
     secure_zero(expected, sizeof expected);
-    if (!tag_ok) return Nack::AuthFailed;
+    return ok;
+  }
+
+  BTSM_NOINLINE Nack verify_tag_and_bytes(const uint8_t* tag, uint16_t& detail) {
+    if (!mac_matches(tag)) return Nack::AuthFailed;
     if (received_ != eeprom_layout::kBlobSize) {
       detail = received_;
       return Nack::BadLength;
@@ -392,6 +421,7 @@ class ModelStore {
   HmacSha256 mac_;
   ModelBreakpoint coeff_;  // interpolated at coeff_speed_rpm_ (step_model)
   uint16_t coeff_speed_rpm_ = kNoCoefficients;
+  uint8_t nonce_[kNonceSize];  // of the open session, kept from begin() until authenticate()
   uint32_t expected_crc_ = 0;
   uint32_t running_crc_ = 0;
   uint32_t next_seq_ = 1;

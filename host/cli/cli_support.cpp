@@ -1,5 +1,7 @@
 #include "cli_support.hpp"
 
+#include <cmath>
+#include <cstdlib>
 #include <iostream>
 
 namespace btsm::cli {
@@ -16,6 +18,23 @@ void add_link_options(CLI::App& cmd, LinkOptions& opts) {
   rf->excludes(usb);
   cmd.add_option("--rfcomm-channel", opts.rfcomm_channel, "RFCOMM channel for --rfcomm")->capture_default_str();
   cmd.add_option("--timeout", opts.timeout_s, "reply timeout in seconds")->capture_default_str();
+}
+
+void refuse_non_finite_numbers(CLI::App& app) {
+  // Empty description: the option's help text stays as it is.
+  const CLI::Validator finite(
+      [](std::string& text) -> std::string {
+        const char* begin = text.c_str();
+        char* end = nullptr;
+        const double v = std::strtod(begin, &end);  // 1e999 overflows to inf
+        if (end == begin) return {};  // not a number at all: the option's own conversion says so
+        if (!std::isfinite(v)) return "'" + text + "' is not a finite number";
+        return {};
+      },
+      "", "finite number");
+  for (CLI::Option* opt : app.get_options())
+    if (opt->get_type_name().find("FLOAT") != std::string::npos) opt->check(finite);
+  for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) refuse_non_finite_numbers(*sub);
 }
 
 }  // namespace btsm::cli

@@ -36,4 +36,9 @@ struct LinkOptions {
 };
 void add_link_options(CLI::App& cmd, LinkOptions& opts);
 
+// Adds to every floating-point option of `app` and its subcommands (registered so far) a check
+// that refuses nan and inf (and numbers beyond double range): CLI11 converts "nan" to a double
+// and its Range and PositiveNumber checks let it through, since every comparison with NaN is false.
+void refuse_non_finite_numbers(CLI::App& app);
+
 }  // namespace btsm::cli

@@ -1,6 +1,7 @@
 // btsm — host tool of the Bluetooth Temperature Sensor Module.
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "host/io/input_error.hpp"
 
 #include <fmt/core.h>
 
@@ -20,14 +21,21 @@ int main(int argc, char** argv) {
   btsm::cli::register_sim_commands(app);
   btsm::cli::register_demo_commands(app);
   btsm::cli::register_suite_commands(app);
+  btsm::cli::refuse_non_finite_numbers(app);  // after every registration: it walks them all
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
-    return app.exit(e);
+    // The parser's own codes (105 missing required option, 106 file does not exist, 114 value out
+    // of range, ...) are all "bad arguments": README promises 2. --help and --version are 0.
+    return app.exit(e) == 0 ? btsm::cli::kExitOk : btsm::cli::kExitUsage;
   } catch (const btsm::cli::CommandError& e) {
     const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
     std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": " << e.what() << "\n";
     return e.code;
+  } catch (const btsm::io::InputError& e) {  // a reader's error no command translated: bad input
+    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
+    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": " << e.what() << "\n";
+    return btsm::cli::kExitUsage;
   } catch (const std::exception& e) {
     const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
     std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": error: " << e.what() << "\n";

@@ -1,6 +1,9 @@
 #include "host/link/device_keys.hpp"
 
 #include "common/hex_text.hpp"
+#include "host/io/hex.hpp"
+#include "host/io/input_error.hpp"
+#include "host/io/input_file.hpp"
 
 #include <fcntl.h>
 #include <sys/random.h>
@@ -8,7 +11,6 @@
 #include <unistd.h>
 
 #include <algorithm>
-#include <cctype>
 #include <cerrno>
 #include <cstdio>
 #include <cstdlib>
@@ -32,7 +34,7 @@ std::optional<uint32_t> parse_device_id(const std::string& text) {
   if (t.size() > 2 && t[0] == '0' && (t[1] == 'x' || t[1] == 'X')) t = t.substr(2);
   if (t.empty() || t.size() > 8) return std::nullopt;
   for (char c : t)
-    if (!std::isxdigit(static_cast<unsigned char>(c))) return std::nullopt;
+    if (hex_digit_value(c) < 0) return std::nullopt;
   return static_cast<uint32_t>(std::stoul(t, nullptr, 16));
 }
 
@@ -46,6 +48,17 @@ std::optional<DeviceKey> key_from_hex(const std::string& text) {
   DeviceKey key{};
   const HexDecodeResult r = hex_decode(text.data(), text.size(), key.data(), key.size(), true);
   if (r.status != HexStatus::kOk || r.bytes != key.size()) return std::nullopt;
+  return key;
+}
+
+DeviceKey key_from_file_content(std::string_view content, const std::string& path) {
+  const io::HexDecode d = io::decode_hex(content);
+  if (!d.ok()) throw io::InputError("key file " + path + ": " + d.problem(content) + " (expected 64 hex digits, a 32-byte key)");
+  if (d.bytes.size() != kDeviceKeySize)
+    throw io::InputError("key file " + path + ": " + std::to_string(d.bytes.size()) +
+                         " bytes of hex, expected 32 (64 hex digits)");
+  DeviceKey key{};
+  std::copy(d.bytes.begin(), d.bytes.end(), key.begin());
   return key;
 }
 
@@ -71,33 +84,45 @@ DeviceKey KeyStore::load(uint32_t id) const {
   const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
   if (fd < 0) {
     if (errno == ENOENT)
-      throw std::runtime_error("no key for device " + device_id_text(id) + " (" + path +
-                               "): create one with `btsm keys generate " + device_id_text(id) +
-                               "` or `btsm keys import " + device_id_text(id) + " HEX`");
-    throw std::runtime_error("cannot open key file " + path + ": " + std::strerror(errno));
+      throw io::InputError("no key for device " + device_id_text(id) + " (" + path +
+                           "): create one with `btsm keys generate " + device_id_text(id) +
+                           "` or `btsm keys import " + device_id_text(id) + " HEX`");
+    throw io::InputError("cannot open key file " + path + ": " + std::strerror(errno));
   }
   struct stat st {};
   ::fstat(fd, &st);
   if (!S_ISREG(st.st_mode)) {
     ::close(fd);
-    throw std::runtime_error("key file " + path + " is not a regular file");
+    throw io::InputError("key file " + path + " is not a regular file");
   }
   if ((st.st_mode & 077) != 0) {
     ::close(fd);
     char mode[8];
     std::snprintf(mode, sizeof mode, "%04o", st.st_mode & 07777);
-    throw std::runtime_error("key file " + path + " has permissions " + mode +
-                             ", readable or writable by others: refusing to use it (run `chmod 600 " + path +
-                             "` if the key was not exposed, otherwise generate a new key and reflash)");
+    throw io::InputError("key file " + path + " has permissions " + mode +
+                         ", readable or writable by others: refusing to use it (run `chmod 600 " + path +
+                         "` if the key was not exposed, otherwise generate a new key and reflash)");
   }
-  std::string text(256, '\0');
-  const ssize_t n = ::read(fd, text.data(), text.size());
+  // The whole file, up to one byte past the cap: a key file holds 64 hex digits and a newline;
+  // anything after them is an error, not ignored.
+  std::string text(kMaxKeyFileBytes + 1, '\0');
+  size_t got = 0;
+  while (got < text.size()) {
+    const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
+    if (n < 0 && errno == EINTR) continue;
+    if (n < 0) {
+      const int err = errno;
+      ::close(fd);
+      throw io::InputError("cannot read key file " + path + ": " + std::strerror(err));
+    }
+    if (n == 0) break;
+    got += static_cast<size_t>(n);
+  }
   ::close(fd);
-  if (n < 0) throw std::runtime_error("cannot read key file " + path + ": " + std::strerror(errno));
-  text.resize(static_cast<size_t>(n));
-  const auto key = key_from_hex(text);
-  if (!key) throw std::runtime_error("key file " + path + ": expected 64 hex characters (a 32-byte key)");
-  return *key;
+  if (got > kMaxKeyFileBytes)
+    throw io::InputError("key file " + path + ": larger than " + io::size_text(kMaxKeyFileBytes) + ", the limit for a key file");
+  text.resize(got);
+  return key_from_file_content(text, path);
 }
 
 void KeyStore::save(uint32_t id, const DeviceKey& key, bool overwrite) const {

@@ -7,6 +7,7 @@
 #include <cstdint>
 #include <optional>
 #include <string>
+#include <string_view>
 #include <vector>
 
 namespace btsm::link {
@@ -20,8 +21,13 @@ std::string device_id_text(uint32_t device_id);
 std::optional<uint32_t> parse_device_id(const std::string& text);
 
 std::string key_to_hex(const DeviceKey& key);
-// 64 hex characters (whitespace around ignored); nullopt otherwise.
+// 64 hex characters (whitespace ignored); nullopt otherwise.
 std::optional<DeviceKey> key_from_hex(const std::string& text);
+
+// A key file holds 64 hex digits and a newline; this cap (stated in the error) bounds the read.
+constexpr size_t kMaxKeyFileBytes = 4096;
+// The key in a key file's content; throws io::InputError naming `path` and what is wrong.
+DeviceKey key_from_file_content(std::string_view content, const std::string& path);
 
 class KeyStore {
  public:
@@ -32,8 +38,8 @@ class KeyStore {
   const std::string& dir() const { return dir_; }
   std::string path_for(uint32_t device_id) const;
 
-  // Loads a key; throws std::runtime_error naming the file when it is missing, has wider
-  // permissions than 0600, or is malformed.
+  // Loads a key; throws io::InputError (exit code 2) naming the file when it is missing, not a
+  // regular file, has wider permissions than 0600, is larger than kMaxKeyFileBytes or malformed.
   DeviceKey load(uint32_t device_id) const;
   bool exists(uint32_t device_id) const;
   // Writes a key (creating the directory 0700, the file 0600). Refuses to overwrite unless told.

@@ -2,6 +2,9 @@
 
 #include "common/hex_text.hpp"
 #include "firmware/device_key.hpp"
+#include "host/io/hex.hpp"
+#include "host/io/input_error.hpp"
+#include "host/io/input_file.hpp"
 
 #include <fcntl.h>
 #include <spawn.h>
@@ -28,9 +31,7 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
   size_t line_no = 0;
   uint32_t base = 0;
   bool eof = false;
-  auto fail = [&](const std::string& why) {
-    throw std::runtime_error(fmt::format("{}:{}: {}", source, line_no, why));
-  };
+  auto fail = [&](const std::string& why) { throw io::InputError(fmt::format("{}:{}: {}", source, line_no, why)); };
   while (std::getline(in, line)) {
     ++line_no;
     while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
@@ -50,6 +51,8 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
     switch (rec[3]) {
       case 0x00:
         for (size_t i = 0; i < len; ++i) img.bytes[base + addr + static_cast<uint32_t>(i)] = rec[4 + i];
+        if (img.bytes.size() > kMaxHexImageBytes)
+          fail(fmt::format("more than {} bytes of data, the limit for a firmware image", kMaxHexImageBytes));
         break;
       case 0x01: eof = true; break;
       case 0x02:
@@ -64,16 +67,18 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
       default: fail(fmt::format("unknown record type 0x{:02x}", rec[3]));
     }
   }
-  if (!eof) throw std::runtime_error(source + ": no end-of-file record (truncated file?)");
+  if (!eof) throw io::InputError(source + ": no end-of-file record (truncated file?)");
   return img;
 }
 
 HexImage read_intel_hex(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::runtime_error("cannot open firmware image " + path + " (build it with the firmware enabled, or pass --hex)");
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return parse_intel_hex(ss.str(), path);
+  std::string text;
+  try {
+    text = io::read_input_file(path, kMaxHexFileBytes, "Intel HEX firmware image");
+  } catch (const io::InputError& e) {
+    throw io::InputError(std::string(e.what()) + " (build it with the firmware enabled, or pass --hex)");
+  }
+  return parse_intel_hex(text, path);
 }
 
 std::string format_intel_hex(const HexImage& image) {
@@ -132,7 +137,7 @@ KeyPatchResult patch_device_key(HexImage& image, uint32_t device_id, const Devic
   for (uint16_t i = 0; i < device_key::kRecordSize; ++i) {
     auto it = image.bytes.find(device_key::kFlashAddress + i);
     if (it == image.bytes.end())
-      throw std::runtime_error(fmt::format(
+      throw io::InputError(fmt::format(
           "the image has no key record at 0x{:04X}..0x{:04X} (not a BTSM firmware image, or built without "
           "the .btsm_key section)", device_key::kFlashAddress, device_key::kFlashAddress + device_key::kRecordSize - 1));
     cur[i] = it->second;
@@ -140,8 +145,8 @@ KeyPatchResult patch_device_key(HexImage& image, uint32_t device_id, const Devic
   }
   if (!erased) {
     if (!device_key::record_valid(cur))
-      throw std::runtime_error(fmt::format("the image holds unexpected bytes at the key record 0x{:04X} (neither "
-                                           "erased nor a valid record): refusing to patch", device_key::kFlashAddress));
+      throw io::InputError(fmt::format("the image holds unexpected bytes at the key record 0x{:04X} (neither "
+                                       "erased nor a valid record): refusing to patch", device_key::kFlashAddress));
     r.had_key = true;
     r.previous_device_id = get_le32(cur + device_key::kOffsetDeviceId);
   }

@@ -17,8 +17,13 @@ struct HexImage {
   size_t size() const { return bytes.size(); }
 };
 
+// Limits of the reader (stated in its errors): the ATmega328P image is 32 KiB, about 90 kB of HEX.
+constexpr size_t kMaxHexFileBytes = size_t{4} << 20;
+constexpr size_t kMaxHexImageBytes = size_t{1} << 20;
+
 // Parses Intel HEX (record types 00, 01, 02, 04; 03/05 start addresses are ignored). Throws
-// std::runtime_error("<source>:<line>: ...") on bad characters, lengths or checksums.
+// io::InputError("<source>:<line>: ...") on bad characters, lengths, checksums or more than
+// kMaxHexImageBytes of data.
 HexImage parse_intel_hex(const std::string& text, const std::string& source);
 HexImage read_intel_hex(const std::string& path);
 // 16 data bytes per record, extended linear address records above 64 KiB, EOF record.

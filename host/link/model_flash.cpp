@@ -1,40 +1,18 @@
 #include "host/link/model_flash.hpp"
 
 #include "common/crc.hpp"
-#include "common/hex_text.hpp"
 #include "common/hmac.hpp"
 #include "common/reduced_model.hpp"
 
 #include <fmt/format.h>
-#include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <cctype>
-#include <filesystem>
-#include <fstream>
-#include <iterator>
 
 namespace btsm::link {
 
 using namespace btsm::wire;
 
 namespace {
-
-std::vector<uint8_t> read_file_bytes(const std::string& path) {
-  std::ifstream in(path, std::ios::binary);
-  if (!in) throw std::runtime_error("cannot open model file " + path);
-  return std::vector<uint8_t>(std::istreambuf_iterator<char>(in), std::istreambuf_iterator<char>());
-}
-
-std::vector<uint8_t> parse_hex_blob(const std::string& hex, const std::string& where) {
-  std::vector<uint8_t> out(hex.size() / 2);
-  const HexDecodeResult r = hex_decode(hex.data(), hex.size(), out.data(), out.size(), true);
-  if (r.status == HexStatus::kBadCharacter)
-    throw std::runtime_error(fmt::format("{}: blob hex has '{}' at character {}", where, hex[r.at], r.at + 1));
-  if (r.status != HexStatus::kOk) throw std::runtime_error(where + ": blob hex has an odd number of digits");
-  out.resize(r.bytes);
-  return out;
-}
 
 // INFO.model_crc names the active blob: the CRC stored in the blob (reduced_model.hpp), which
 // some firmware builds may report as the CRC-32 over the whole blob instead; both identify it.
@@ -43,47 +21,61 @@ bool info_crc_matches(uint32_t info_crc, std::span<const uint8_t> blob) {
   return info_crc == crc32(blob.data(), blob.size());
 }
 
-}  // namespace
-
-std::vector<uint8_t> load_model_blob(const std::string& path) {
-  const auto bytes = read_file_bytes(path);
-  const bool json = std::filesystem::path(path).extension() == ".json" || (!bytes.empty() && bytes[0] == '{');
-  if (!json) return bytes;
-  nlohmann::json j;
+// MODEL_AUTH, the step that lets the module write. A retried MODEL_AUTH whose first attempt was
+// accepted (its ACK lost) finds the session past the challenge: NO_SESSION then means "already
+// authenticated", which the first chunk confirms or refutes.
+void authenticate_upload(Session& session, const DeviceKey& key, const AuthChallenge& challenge, uint16_t total_len,
+                         uint32_t blob_crc32, const Info& info) {
+  ModelAuth a{};
+  const auto tag = model_auth_tag(key, std::span<const uint8_t>(challenge.nonce, kNonceSize), total_len, blob_crc32);
+  std::copy(tag.begin(), tag.end(), a.hmac);
+  uint8_t p[kMaxPayload];
+  const uint8_t len = encode_model_auth(a, p);
+  int attempts = 0;
   try {
-    j = nlohmann::json::parse(bytes.begin(), bytes.end());
-  } catch (const std::exception& e) {
-    throw std::runtime_error(path + ": not valid JSON: " + e.what());
+    session.request(MsgType::ModelAuth, std::span<const uint8_t>(p, len), std::nullopt, &attempts);
+  } catch (const NackError& e) {
+    if (e.code() == static_cast<uint8_t>(Nack::UnknownType))
+      throw LinkError(LinkErrorKind::kUnsupported,
+                      fmt::format("the module (firmware {}.{}.{}) does not know MODEL_AUTH: that firmware writes model "
+                                  "chunks before it checks the key. Update it (`btsm flash-firmware`), then flash the "
+                                  "model again; nothing was written",
+                                  info.fw_major, info.fw_minor, info.fw_patch));
+    if (attempts > 1 && e.code() == static_cast<uint8_t>(Nack::NoSession)) return;
+    throw;
   }
-  // The blob may sit at the top level or inside a "blob" / "model" object.
-  const nlohmann::json* node = &j;
-  for (const char* obj : {"blob", "model"})
-    if (j.contains(obj) && j[obj].is_object()) node = &j[obj];
-  for (const char* key : {"blob_hex", "hex", "blob"}) {
-    if (node->contains(key) && (*node)[key].is_string())
-      return parse_hex_blob((*node)[key].get<std::string>(), path + ": \"" + key + "\"");
-  }
-  for (const char* key : {"blob_file", "blob_path", "file", "path"}) {
-    if (node->contains(key) && (*node)[key].is_string()) {
-      std::filesystem::path p = (*node)[key].get<std::string>();
-      if (p.is_relative()) p = std::filesystem::path(path).parent_path() / p;
-      return read_file_bytes(p.string());
-    }
-  }
-  throw std::runtime_error(path + ": this JSON holds no model blob (looked for \"blob_hex\" or \"blob_file\"): "
-                                  "write the blob with `btsm reduce ... --blob model.bin` and flash model.bin");
 }
 
-std::string check_model_blob(std::span<const uint8_t> blob) {
-  if (blob.size() != kReducedModelBlobSize)
-    return fmt::format("model blob is {} bytes, expected {}", blob.size(), kReducedModelBlobSize);
-  ReducedModel m;
-  const ModelCheck c = decode(blob.data(), blob.size(), m);
-  if (c.ok()) return {};
-  std::string where;
-  if (c.breakpoint != 0xFF) where = fmt::format(" (breakpoint {})", c.breakpoint);
-  else if (c.channel != 0xFF) where = fmt::format(" (channel {})", c.channel + 1);
-  return std::string(model_status_name(c.status)) + where;
+// A link failure once MODEL_COMMIT is on its way: say what is known about the module's model and
+// how to find out the rest, instead of a bare "device hung up".
+[[noreturn]] void link_lost_after_commit(const LinkError& e, bool commit_acknowledged, std::span<const uint8_t> blob,
+                                         const Info& before) {
+  const uint32_t new_crc = blob.size() == kReducedModelBlobSize ? blob_stored_crc(blob.data()) : crc32(blob.data(), blob.size());
+  const std::string check = fmt::format("Check with `btsm info`: model crc {:08x} with a model seq above {} is the new model", new_crc,
+                                        before.model_seq);
+  if (commit_acknowledged)
+    throw LinkError(e.kind(), fmt::format("the module accepted the commit (the new model is stored), then the link was lost "
+                                          "before the read-back verified it: {}. {}",
+                                          e.what(), check));
+  throw LinkError(e.kind(), fmt::format("the link was lost after MODEL_COMMIT was sent: {}. Whether the module took the new "
+                                        "model is unknown. {}; crc {:08x} seq {} means the previous model is still active "
+                                        "and nothing changed (flash again)",
+                                        e.what(), check, before.model_crc, before.model_seq));
+}
+
+}  // namespace
+
+std::array<uint8_t, 32> model_auth_tag(const DeviceKey& key, std::span<const uint8_t> nonce, uint16_t total_len,
+                                       uint32_t blob_crc32) {
+  uint8_t context[kModelAuthContextSize];
+  encode_model_auth_context(total_len, blob_crc32, context);
+  std::array<uint8_t, 32> tag{};
+  HmacSha256 mac;
+  mac.init(key.data(), key.size());
+  mac.update(nonce.data(), nonce.size());
+  mac.update(context, sizeof context);
+  mac.final(tag.data());
+  return tag;
 }
 
 std::array<uint8_t, 32> model_commit_tag(const DeviceKey& key, std::span<const uint8_t> nonce,
@@ -128,6 +120,7 @@ FlashSummary flash_model(Session& session, std::span<const uint8_t> blob, const 
 
   const uint32_t crc = crc32(blob.data(), blob.size());
   const AuthChallenge challenge = session.model_begin(static_cast<uint16_t>(blob.size()), crc);
+  authenticate_upload(session, key, challenge, static_cast<uint16_t>(blob.size()), crc, before);
 
   // Upload. BAD_OFFSET carries the offset the module expects next: after a lost ACK it is
   // already past our chunk; after lost chunk data it is behind. Either way continue there.
@@ -175,19 +168,36 @@ FlashSummary flash_model(Session& session, std::span<const uint8_t> blob, const 
     const bool maybe_applied = attempts > 1 && (e.code() == static_cast<uint8_t>(Nack::NoSession) ||
                                                 e.code() == static_cast<uint8_t>(Nack::AuthFailed));
     if (!maybe_applied) throw;
-    const Info now = session.get_info();
+    Info now{};
+    try {
+      now = session.get_info();
+    } catch (const NackError&) {
+      throw;
+    } catch (const LinkError& lost) {
+      link_lost_after_commit(lost, false, blob, before);
+    }
     if (!(now.model_seq != before.model_seq && info_crc_matches(now.model_crc, blob))) throw;
     s.commit_confirmed_by_info = true;
+  } catch (const LinkError& e) {
+    link_lost_after_commit(e, false, blob, before);
   }
 
   report(0, "verify");
-  const auto back = read_model(session, blob.size());
+  std::vector<uint8_t> back;
+  Info after{};
+  try {
+    back = read_model(session, blob.size());
+    after = session.get_info();
+  } catch (const NackError&) {
+    throw;
+  } catch (const LinkError& e) {
+    link_lost_after_commit(e, true, blob, before);
+  }
   if (!std::equal(back.begin(), back.end(), blob.begin(), blob.end()))
     throw LinkError(LinkErrorKind::kProtocol,
                     "read-back differs from the uploaded model although the module acknowledged the commit");
   if (crc32(back.data(), back.size()) != crc)
     throw LinkError(LinkErrorKind::kProtocol, "read-back CRC-32 mismatch");
-  const Info after = session.get_info();
   s.model_crc = after.model_crc;
   s.model_seq_after = after.model_seq;
   if (!info_crc_matches(after.model_crc, blob) || after.model_seq == before.model_seq ||

@@ -1,12 +1,15 @@
 #pragma once
 // Model upload with authentication and read-back:
 //   GET_INFO (device id, current model) -> MODEL_BEGIN {len, crc32} -> AUTH_CHALLENGE {nonce}
+//   -> MODEL_AUTH {HMAC-SHA256(key, nonce || 0x4A || len || crc32)}: the module writes nothing
+//      before this proof of the key
 //   -> MODEL_CHUNKs sized so each encoded frame fits one 20-byte BLE write, each ACKed
 //   -> MODEL_COMMIT {HMAC-SHA256(key, nonce || blob)} -> MODEL_READ back, byte and CRC compare
 //   -> GET_INFO: model_crc and model_seq confirm the module runs the new model.
 // The module stages the blob and only switches to it after a valid commit (two-phase), so any
 // failure before the commit ACK leaves the previous model in place; this code says so.
 #include "host/link/device_keys.hpp"
+#include "host/link/model_blob_file.hpp"
 #include "host/link/session.hpp"
 
 #include <functional>
@@ -14,15 +17,6 @@
 #include <vector>
 
 namespace btsm::link {
-
-// Loads a model blob: a raw .bin, or the JSON of `btsm reduce` holding the blob as hex
-// ("blob_hex" or "blob") or a path to it ("blob_file"/"blob_path", relative to the JSON).
-// Throws std::runtime_error naming the file and what is wrong.
-std::vector<uint8_t> load_model_blob(const std::string& path);
-
-// Checks the blob like the firmware will (length, CRC, magic, version, values); returns an
-// empty string when valid, else the reason.
-std::string check_model_blob(std::span<const uint8_t> blob);
 
 struct FlashProgress {
   size_t bytes_sent = 0, total = 0;
@@ -47,12 +41,19 @@ struct FlashSummary {
 };
 
 // Runs the whole upload; throws NackError (with the module's reason, the previous model kept)
-// or LinkError. `key` authenticates the commit.
+// or LinkError. `key` authenticates the upload (MODEL_AUTH) and the commit. A link lost once
+// MODEL_COMMIT is sent is a LinkError of the same kind whose message says whether the commit was
+// acknowledged, that the outcome is otherwise unknown, and which INFO values (`btsm info`) show
+// the new model.
 FlashSummary flash_model(Session& session, std::span<const uint8_t> blob, const DeviceKey& key,
                          const FlashOptions& opts = {});
 
 // Reads `len` bytes of the active model back with MODEL_READ.
 std::vector<uint8_t> read_model(Session& session, size_t len);
+
+// HMAC-SHA256(key, nonce || wire::encode_model_auth_context(total_len, blob_crc32)): MODEL_AUTH.
+std::array<uint8_t, 32> model_auth_tag(const DeviceKey& key, std::span<const uint8_t> nonce, uint16_t total_len,
+                                       uint32_t blob_crc32);
 
 // HMAC-SHA256(key, nonce || blob) as the module computes it.
 std::array<uint8_t, 32> model_commit_tag(const DeviceKey& key, std::span<const uint8_t> nonce,

@@ -1,54 +1,64 @@
-// Fitted-model JSON codec.
+// Fitted-model JSON reader and the checks every loaded model passes.
 #include "model_file.hpp"
 
+#include "host/io/json_input.hpp"
+
+#include <Eigen/Eigenvalues>
+
+#include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <fstream>
 #include <limits>
 #include <stdexcept>
 
 namespace btsm::thermal {
+namespace {
 
-nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std::vector<Recording>& recs) {
-  nlohmann::json j;
-  j["format"] = "btsm-thermal-model-1";
-  j["network"] = network_to_json(net);
-  nlohmann::json values, sigma, units, status, notes;
-  for (const auto& e : fit.estimates) {
-    values[e.name] = e.value;
-    sigma[e.name] = e.sigma;
-    units[e.name] = e.unit;
-    status[e.name] = identifiability_name(e.status);
-    if (!e.note.empty()) notes[e.name] = e.note;
-  }
-  j["parameters"] = values;
-  j["sigma"] = sigma;
-  j["sigma_note"] = fit.sigma_method + " (fixed: 0)";
-  j["units"] = units;
-  j["identifiability"] = status;
-  j["notes"] = notes.is_null() ? nlohmann::json::object() : notes;
-  j["gauge"] = fit.gauge;
-  j["fit"] = {{"rms_K", fit.rms_K},
-              {"residual_sigma_K", fit.residual_sigma_K},
-              {"residual_count", fit.residual_count},
-              {"free_parameters", fit.free_parameter_count},
-              {"condition_number", fit.condition_number},
-              {"converged", fit.converged},
-              {"seconds", fit.seconds}};
-  j["fit"]["stages"] = nlohmann::json::array();
-  for (const auto& s : fit.stages)
-    j["fit"]["stages"].push_back({{"name", s.name}, {"iterations", s.iterations}, {"rms_K", s.rms_K}, {"seconds", s.seconds}});
-  j["recordings"] = nlohmann::json::array();
-  for (std::size_t r = 0; r < recs.size(); ++r) {
-    nlohmann::json rj{{"file", recs[r].source}, {"rows", recs[r].rows()}};
-    if (r < fit.correlation_rows.size()) rj["residual_correlation_rows"] = fit.correlation_rows[r];
-    if (r < fit.initial_states.size()) {
-      std::vector<double> x(fit.initial_states[r].data(), fit.initial_states[r].data() + fit.initial_states[r].size());
-      rj["initial_state_c"] = x;
+std::string value_text(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.6g", v);
+  return buf;
+}
+
+// The smallest eigenvalue of the conductance matrix relative to its largest: > 0 when every node
+// has a path of positive conductances to ambient (then A = -C^-1 G has only negative poles).
+bool conductances_stable(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
+  const NodeMatrices m = assemble(net, params, speed_rpm);
+  if (!m.G.allFinite()) return false;
+  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(m.G, Eigen::EigenvaluesOnly);
+  if (es.info() != Eigen::Success) return false;
+  const Eigen::VectorXd& ev = es.eigenvalues();  // ascending
+  return ev[0] > 1e-12 * std::max(std::abs(ev[ev.size() - 1]), 1e-300);
+}
+
+}  // namespace
+
+std::string model_problems(const Network& net, const Eigen::VectorXd& params) {
+  std::string out;
+  auto add = [&](const std::string& s) { out += (out.empty() ? "" : "; ") + s; };
+  if (params.size() != net.param_count()) return "expected " + std::to_string(net.param_count()) + " parameter values";
+  bool all_finite = true;
+  for (int i = 0; i < net.param_count(); ++i) {
+    const Parameter& p = net.params[static_cast<std::size_t>(i)];
+    const double v = params[i];
+    if (!std::isfinite(v)) {
+      add("'" + p.name + "' is not finite");
+      all_finite = false;
+    } else if (v < p.min || v > p.max) {
+      add("'" + p.name + "' = " + value_text(v) + " " + p.unit + " is outside the network's bounds [" + value_text(p.min) +
+          ", " + value_text(p.max) + "]");
     }
-    j["recordings"].push_back(rj);
   }
-  j["warnings"] = fit.warnings;
-  return j;
+  if (!all_finite || !out.empty()) return out;
+  for (const Node& n : net.nodes)
+    if (!(params[n.capacitance_param] > 0)) add("node '" + n.name + "' has a capacitance <= 0");
+  if (!out.empty()) return out;
+  const double operating = net.mode_at(net.speed_ref_rpm) == Mode::Operating ? net.speed_ref_rpm : 2 * net.operating_above_rpm;
+  for (const double s : {0.0, operating})
+    if (!conductances_stable(net, params, s))
+      add(std::string("not stable in ") + mode_name(net.mode_at(s)) + " mode (a node without a path of positive conductances to ambient)");
+  return out;
 }
 
 FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
@@ -66,22 +76,16 @@ FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
       throw std::invalid_argument(src + ": parameters: missing or non-numeric value for '" + name + "'");
     m.params[i] = pv.at(name).get<double>();
     if (!std::isfinite(m.params[i])) throw std::invalid_argument(src + ": parameters: '" + name + "' is not finite");
-    if (j.contains("sigma") && j.at("sigma").contains(name) && j.at("sigma").at(name).is_number())
+    if (j.contains("sigma") && j.at("sigma").is_object() && j.at("sigma").contains(name) && j.at("sigma").at(name).is_number())
       m.sigma[i] = j.at("sigma").at(name).get<double>();
   }
+  const std::string problems = model_problems(m.network, m.params);
+  if (!problems.empty()) throw std::invalid_argument(src + ": not a usable model: " + problems);
   return m;
 }
 
 FittedModel load_model(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot open model file");
-  nlohmann::json j;
-  try {
-    j = nlohmann::json::parse(f);
-  } catch (const nlohmann::json::parse_error& e) {
-    throw std::invalid_argument(path + ": not valid JSON: " + e.what());
-  }
-  return model_from_json(j, path);
+  return model_from_json(io::read_json_file(path, kMaxModelBytes, "model JSON"), path);
 }
 
 void save_json(const std::string& path, const nlohmann::json& j) {

@@ -8,6 +8,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -20,7 +21,20 @@ struct FittedModel {
   nlohmann::json json;     // the whole document
 };
 
+// Size cap of a model file (a fitted model is a few kB), stated in the error.
+constexpr std::size_t kMaxModelBytes = std::size_t{16} << 20;
+
 nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std::vector<Recording>& recs);
+
+// What makes parameter values unusable as a model of `net`, "" when none: a value that is not
+// finite or outside its parameter's [min, max], a capacitance <= 0, or a network that is not
+// stable (checked at 0 rpm and in the operating mode: every node needs a path of positive
+// conductances to ambient).
+std::string model_problems(const Network& net, const Eigen::VectorXd& params);
+
+// Reads a model; every model passes model_problems() on load, so validate, reduce, heat and
+// residual never work on a value the network forbids. Throws std::invalid_argument (io::InputError
+// for an unreadable file) naming the source and the problems.
 FittedModel model_from_json(const nlohmann::json& j, const std::string& source);
 FittedModel load_model(const std::string& path);
 void save_json(const std::string& path, const nlohmann::json& j);

@@ -3,6 +3,8 @@
 
 #include "spindle4_preset.hpp"  // generated: kSpindle4Json (presets/spindle4.json)
 
+#include "host/io/json_input.hpp"
+
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -20,7 +22,7 @@ using nlohmann::json;
 double get_number(const json& j, const char* key, double def, const std::string& src, const std::string& where) {
   if (!j.contains(key) || j.at(key).is_null()) return def;
   const json& v = j.at(key);
-  if (!v.is_number()) bad(src, where, std::string("field '") + key + "' must be a number, found " + v.dump());
+  if (!v.is_number()) bad(src, where, std::string("field '") + key + "' must be a number, found " + io::json_excerpt(v));
   const double d = v.get<double>();
   if (!std::isfinite(d)) bad(src, where, std::string("field '") + key + "' is not finite");
   return d;
@@ -28,12 +30,12 @@ double get_number(const json& j, const char* key, double def, const std::string&
 
 std::string get_string(const json& j, const char* key, const std::string& src, const std::string& where) {
   if (!j.contains(key)) bad(src, where, std::string("missing field '") + key + "'");
-  if (!j.at(key).is_string()) bad(src, where, std::string("field '") + key + "' must be a string, found " + j.at(key).dump());
+  if (!j.at(key).is_string()) bad(src, where, std::string("field '") + key + "' must be a string, found " + io::json_excerpt(j.at(key)));
   return j.at(key).get<std::string>();
 }
 
 void check_keys(const json& j, std::initializer_list<const char*> allowed, const std::string& src, const std::string& where) {
-  if (!j.is_object()) bad(src, where, "must be a JSON object, found " + j.dump());
+  if (!j.is_object()) bad(src, where, "must be a JSON object, found " + io::json_excerpt(j));
   for (auto it = j.begin(); it != j.end(); ++it) {
     bool ok = false;
     for (const char* a : allowed) ok = ok || it.key() == a;
@@ -41,9 +43,15 @@ void check_keys(const json& j, std::initializer_list<const char*> allowed, const
   }
 }
 
+// An array of at most `max` entries (the reader's size limits, see kMaxNetworkNodes ...).
+void check_count(const json& arr, std::size_t max, const std::string& src, const std::string& where) {
+  if (arr.size() > max) bad(src, where, std::to_string(arr.size()) + " entries, at most " + std::to_string(max) + " are supported");
+}
+
 std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, const std::string& src, const std::string& where) {
   std::vector<Term> out;
   if (!arr.is_array()) bad(src, where, "must be an array of terms");
+  check_count(arr, kMaxNetworkTermsPerList, src, where);
   for (std::size_t i = 0; i < arr.size(); ++i) {
     const std::string w = where + "[" + std::to_string(i) + "]";
     const json& t = arr[i];
@@ -60,6 +68,9 @@ std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, co
     term.param = net.param_index(pname);
     if (term.param < 0) bad(src, w, "unknown parameter '" + pname + "' (declare it in 'parameters')");
     term.speed_exponent = get_number(t, "speed_exponent", 0.0, src, w);
+    if (std::abs(term.speed_exponent) > kMaxSpeedExponent)
+      bad(src, w, "speed_exponent " + std::to_string(term.speed_exponent) + " is outside +-" +
+                      std::to_string(static_cast<int>(kMaxSpeedExponent)));
     if (t.contains("event")) {
       const std::string ev = get_string(t, "event", src, w);
       for (std::size_t k = 0; k < net.events.size(); ++k)
@@ -260,8 +271,9 @@ Network network_from_json(const json& j, const std::string& src) {
     if (!j.contains(k)) continue;
     const json& a = j.at(k);
     if (!a.is_array()) bad(src, k, "must be an array of column names");
+    check_count(a, kMaxNetworkNodes, src, k);
     for (std::size_t i = 0; i < a.size(); ++i) {
-      if (!a[i].is_string()) bad(src, std::string(k) + "[" + std::to_string(i) + "]", "must be a column name, found " + a[i].dump());
+      if (!a[i].is_string()) bad(src, std::string(k) + "[" + std::to_string(i) + "]", "must be a column name, found " + io::json_excerpt(a[i]));
       (std::string(k) == "boundaries" ? net.boundaries : net.events).push_back(a[i].get<std::string>());
     }
   }
@@ -271,6 +283,9 @@ Network network_from_json(const json& j, const std::string& src) {
   net.sum_capacitance_J_per_K = get_number(j, "sum_capacitance_J_per_K", std::nan(""), src, "sum_capacitance_J_per_K");
   for (const char* k : {"parameters", "nodes", "links"})
     if (!j.contains(k) || !j.at(k).is_array()) bad(src, k, "missing or not an array");
+  check_count(j.at("parameters"), kMaxNetworkParameters, src, "parameters");
+  check_count(j.at("nodes"), kMaxNetworkNodes, src, "nodes");
+  check_count(j.at("links"), kMaxNetworkLinks, src, "links");
   const json& ps = j.at("parameters");
   for (std::size_t i = 0; i < ps.size(); ++i) {
     const std::string w = "parameters[" + std::to_string(i) + "]";
@@ -289,7 +304,7 @@ Network network_from_json(const json& j, const std::string& src) {
       p.initial = get_number(pj, "initial", 1.0, src, wn);
       p.initial_auto = false;
     } else {
-      bad(src, wn, "field 'initial' must be a number or \"auto\", found " + pj.at("initial").dump());
+      bad(src, wn, "field 'initial' must be a number or \"auto\", found " + io::json_excerpt(pj.at("initial")));
     }
     p.min = get_number(pj, "min", 1e-9, src, wn);
     p.max = get_number(pj, "max", 1e9, src, wn);
@@ -345,6 +360,7 @@ Network network_from_json(const json& j, const std::string& src) {
   if (j.contains("sources")) {
     const json& ss = j.at("sources");
     if (!ss.is_array()) bad(src, "sources", "must be an array");
+    check_count(ss, kMaxNetworkLinks, src, "sources");
     for (std::size_t i = 0; i < ss.size(); ++i) {
       std::string w = "sources[" + std::to_string(i) + "]";
       check_keys(ss[i], {"name", "node", "both", "operating", "cooling"}, src, w);
@@ -359,6 +375,7 @@ Network network_from_json(const json& j, const std::string& src) {
   if (j.contains("measurements")) {
     const json& ms = j.at("measurements");
     if (!ms.is_array()) bad(src, "measurements", "must be an array");
+    check_count(ms, kMaxNetworkNodes, src, "measurements");
     for (std::size_t i = 0; i < ms.size(); ++i) {
       const std::string w = "measurements[" + std::to_string(i) + "]";
       check_keys(ms[i], {"column", "node", "drift"}, src, w);
@@ -429,15 +446,7 @@ json network_to_json(const Network& net) {
 }
 
 Network load_network(const std::string& path) {
-  std::ifstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot open network file");
-  json j;
-  try {
-    j = json::parse(f);
-  } catch (const json::parse_error& e) {
-    throw std::invalid_argument(path + ": not valid JSON: " + e.what());
-  }
-  return network_from_json(j, path);
+  return network_from_json(io::read_json_file(path, kMaxNetworkBytes, "network JSON"), path);
 }
 
 std::vector<std::string> preset_names() { return {"spindle4"}; }

@@ -51,6 +51,7 @@
 #include <Eigen/Core>
 #include <nlohmann/json.hpp>
 
+#include <cstddef>
 #include <limits>
 #include <string>
 #include <vector>
@@ -161,6 +162,18 @@ struct NodeMatrices {
 // `event_mask` bit k = Network::events[k] is on.
 NodeMatrices assemble(const Network& net, const Eigen::VectorXd& params, double speed_rpm, unsigned event_mask = 0);
 
+// Limits of the reader. A network JSON is a description a person writes: these are far above any
+// real one (spindle4: 4 nodes, 23 parameters) and keep a hostile file from asking for matrices
+// of millions of nodes or speed laws that overflow (|speed_exponent| <= 10).
+constexpr std::size_t kMaxNetworkBytes = std::size_t{16} << 20;
+constexpr std::size_t kMaxNetworkNodes = 128;
+constexpr std::size_t kMaxNetworkParameters = 1024;
+constexpr std::size_t kMaxNetworkLinks = 1024;  // also the limit for sources
+constexpr std::size_t kMaxNetworkTermsPerList = 16;
+constexpr double kMaxSpeedExponent = 10.0;
+
+// Reads a network file (at most kMaxNetworkBytes, JSON nested at most io::kMaxJsonDepth).
+// Throws std::invalid_argument (io::InputError for an unreadable file) naming file and entry.
 Network load_network(const std::string& json_path);
 Network network_from_json(const nlohmann::json& j, const std::string& source);
 nlohmann::json network_to_json(const Network& net);

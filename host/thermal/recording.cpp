@@ -2,12 +2,16 @@
 // hand and produced by several tools.
 #include "recording.hpp"
 
+#include "host/io/input_error.hpp"
+#include "host/io/input_file.hpp"
+
 #include <charconv>
 #include <cmath>
 #include <fstream>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
+#include <unordered_set>
 
 namespace btsm::thermal {
 namespace {
@@ -19,7 +23,7 @@ constexpr double kNaN = std::numeric_limits<double>::quiet_NaN();
   os << src << ":" << line;
   if (col > 0) os << ":" << col;
   os << ": " << what;
-  throw std::runtime_error(os.str());
+  throw io::InputError(os.str());
 }
 
 std::string trim(const std::string& s) {
@@ -44,6 +48,9 @@ std::vector<std::string> split_cells(const std::string& line) {
   return cells;
 }
 
+// A cell as an error message shows it: cut to 40 characters (a line without commas may be huge).
+std::string shown(const std::string& cell) { return cell.size() <= 40 ? cell : cell.substr(0, 40) + "..."; }
+
 // Parses a finite number or throws with position. Empty -> NaN only if allow_empty.
 double parse_number(const std::string& cell, bool allow_empty, const std::string& src, std::size_t line,
                     std::size_t col, const std::string& column_name) {
@@ -57,8 +64,8 @@ double parse_number(const std::string& cell, bool allow_empty, const std::string
   if (*first == '+') ++first;  // from_chars rejects a leading '+'
   auto [ptr, ec] = std::from_chars(first, last, v);
   if (ec != std::errc() || ptr != last)
-    fail(src, line, col, "column '" + column_name + "': bad number '" + cell + "'");
-  if (!std::isfinite(v)) fail(src, line, col, "column '" + column_name + "': non-finite value '" + cell + "'");
+    fail(src, line, col, "column '" + column_name + "': bad number '" + shown(cell) + "'");
+  if (!std::isfinite(v)) fail(src, line, col, "column '" + column_name + "': non-finite value '" + shown(cell) + "'");
   return v;
 }
 
@@ -73,6 +80,17 @@ std::string format_compact(double v) {
   char buf[64];
   std::snprintf(buf, sizeof buf, "%.10g", v);
   return buf;
+}
+
+// A temperature (or ambient) inside [kMinRecordedTempC, kMaxRecordedTempC]; NaN (missing) passes.
+double check_temperature(double v, const std::string& cell, const std::string& src, std::size_t line, std::size_t col,
+                         const std::string& column_name) {
+  if (v < kMinRecordedTempC)
+    fail(src, line, col, "column '" + column_name + "': " + shown(cell) + " degC is below absolute zero (-273.15 degC)");
+  if (v > kMaxRecordedTempC)
+    fail(src, line, col, "column '" + column_name + "': " + shown(cell) + " degC is above the " +
+                             format_compact(kMaxRecordedTempC) + " degC a recording may hold");
+  return v;
 }
 
 }  // namespace
@@ -117,14 +135,14 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
         if (c >= cells.size() || cells[c] != kFixed[c])
           fail(source, line_no, c + 1,
                std::string("header: expected column '") + kFixed[c] + "' here, found '" +
-                   (c < cells.size() ? cells[c] : std::string("<nothing>")) +
+                   (c < cells.size() ? shown(cells[c]) : std::string("<nothing>")) +
                    "' (header must start time_s,speed_rpm,ambient_c)");
       }
       if (cells.size() < 4) fail(source, line_no, 4, "header: no temperature column after ambient_c");
+      std::unordered_set<std::string> seen;  // a set, not pairwise compares: a header may be huge
       for (std::size_t c = 3; c < cells.size(); ++c) {
         if (cells[c].empty()) fail(source, line_no, c + 1, "header: empty column name");
-        for (std::size_t d = 3; d < c; ++d)
-          if (cells[d] == cells[c]) fail(source, line_no, c + 1, "header: duplicate column '" + cells[c] + "'");
+        if (!seen.insert(cells[c]).second) fail(source, line_no, c + 1, "header: duplicate column '" + shown(cells[c]) + "'");
         rec.channels.push_back(cells[c]);
       }
       have_header = true;
@@ -139,17 +157,22 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
     }
     const double t = parse_number(cells[0], false, source, line_no, 1, "time_s");
     if (!rec.time_s.empty() && !(t > rec.time_s.back()))
-      fail(source, line_no, 1, "column 'time_s': time does not increase (" + cells[0] + " after " +
+      fail(source, line_no, 1, "column 'time_s': time does not increase (" + shown(cells[0]) + " after " +
                                    format_compact(rec.time_s.back()) + ")");
     const double w = parse_number(cells[1], false, source, line_no, 2, "speed_rpm");
-    if (w < 0) fail(source, line_no, 2, "column 'speed_rpm': negative speed '" + cells[1] + "'");
-    const double amb = parse_number(cells[2], false, source, line_no, 3, "ambient_c");
+    if (w < 0) fail(source, line_no, 2, "column 'speed_rpm': negative speed '" + shown(cells[1]) + "'");
+    if (w > kMaxRecordedSpeedRpm)
+      fail(source, line_no, 2, "column 'speed_rpm': " + shown(cells[1]) + " rpm is above the " + format_compact(kMaxRecordedSpeedRpm) +
+                                   " rpm a recording may hold");
+    const double amb = check_temperature(parse_number(cells[2], false, source, line_no, 3, "ambient_c"), cells[2], source,
+                                         line_no, 3, "ambient_c");
     rec.time_s.push_back(t);
     rec.speed_rpm.push_back(w);
     rec.ambient_c.push_back(amb);
     std::vector<double> row(rec.channels.size());
     for (std::size_t c = 0; c < rec.channels.size(); ++c)
-      row[c] = parse_number(cells[3 + c], true, source, line_no, 4 + c, rec.channels[c]);
+      row[c] = check_temperature(parse_number(cells[3 + c], true, source, line_no, 4 + c, rec.channels[c]), cells[3 + c],
+                                 source, line_no, 4 + c, rec.channels[c]);
     temps.push_back(std::move(row));
   }
   if (!have_header) fail(source, line_no, 0, "no header line 'time_s,speed_rpm,ambient_c,...' found");
@@ -162,11 +185,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
 }
 
 Recording read_recording_csv(const std::string& path) {
-  std::ifstream f(path, std::ios::binary);
-  if (!f) throw std::runtime_error(path + ": cannot open recording");
-  std::ostringstream ss;
-  ss << f.rdbuf();
-  return parse_recording_csv(ss.str(), path);
+  return parse_recording_csv(io::read_input_file(path, kMaxRecordingBytes, "recording CSV"), path);
 }
 
 void write_recording_csv(const std::string& path, const Recording& rec, int temp_decimals) {

@@ -10,6 +10,7 @@
 // (stored as NaN). ambient_c is the boundary temperature of the network, a time series.
 #include <Eigen/Core>
 
+#include <cstddef>
 #include <cstdio>
 #include <string>
 #include <utility>
@@ -31,10 +32,21 @@ struct Recording {
   std::string meta_value(const std::string& key) const;
 };
 
-// Reads a recording. Throws std::runtime_error("<file>:<line>:<column>: <problem>") on a missing
-// or misplaced mandatory column, a bad or non-finite number, a wrong cell count, non-increasing
-// time, or an empty file. Empty temperature cells are missing values; time, speed and ambient must
-// be present on every row.
+// Bounds of the values a recording may hold. Beyond them the arithmetic of fit and simulation
+// overflows (a speed of 1e300 rpm raised to a speed exponent, a temperature of 1e155 squared) and
+// no real spindle gets there: temperatures at or above absolute zero and below 10,000 degC (every
+// material has melted), speeds up to 1,000,000 rpm (the fastest spindles run at a few 100,000).
+constexpr double kMinRecordedTempC = -273.15;
+constexpr double kMaxRecordedTempC = 10000.0;
+constexpr double kMaxRecordedSpeedRpm = 1.0e6;
+// Size cap of a recording file (about 4 million rows of 5 channels), stated in the error.
+constexpr std::size_t kMaxRecordingBytes = std::size_t{256} << 20;
+
+// Reads a recording. Throws io::InputError (a std::invalid_argument)
+// "<file>:<line>:<column>: <problem>" on a missing or misplaced mandatory column, a bad,
+// non-finite or out-of-bounds number, a wrong cell count, non-increasing time, or an empty file;
+// and naming the file when it cannot be read, is not text, or is larger than kMaxRecordingBytes.
+// Empty temperature cells are missing values; time, speed and ambient must be present on every row.
 Recording read_recording_csv(const std::string& path);
 // Same, from text already in memory (`source` names it in errors).
 Recording parse_recording_csv(const std::string& text, const std::string& source);

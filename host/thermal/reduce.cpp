@@ -12,6 +12,7 @@
 
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <stdexcept>
 
 namespace btsm::thermal {
@@ -63,6 +64,9 @@ SpeedReduction reduce_assembled(const Network& net, const NodeMatrices& m, doubl
   }
   int k = 0;
   while (k < n && sig[k] > 1e-12 * sig[0]) ++k;  // minimal (controllable and observable) part
+  if (k == 0)  // nothing to balance: the inputs move no node (all heat sources 0 W, or a zero stop state)
+    throw std::runtime_error("reduction at " + std::to_string(static_cast<long>(speed)) +
+                             " rpm: every Hankel singular value is 0, the inputs heat no node (are all heat sources 0 W?)");
   r.hsv = sig.head(k);
   // T = Lo^-T U S^1/2, Ti = S^-1/2 U^T Lo^T: Ti P Ti^T = T^T Q T = diag(hsv)
   const Eigen::VectorXd sq = sig.head(k).cwiseSqrt();
@@ -129,6 +133,12 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
         if (t.driven && !((t.hot == s.node && t.cold == kAmbient) || (t.cold == s.node && t.hot == kAmbient)))
           throw std::invalid_argument("reduce: source '" + s.name + "' is driven by a difference of other nodes; the balanced "
                                       "reduction needs the symmetric form of a passive network");
+  if (!(o.dt_s >= kModelMinDtMs / 1000.0 && o.dt_s <= kModelMaxDtMs / 1000.0)) {  // NaN fails too
+    char msg[96];
+    std::snprintf(msg, sizeof msg, "reduce: the firmware sample period must be %g ... %g s, not %g", kModelMinDtMs / 1000.0,
+                  kModelMaxDtMs / 1000.0, o.dt_s);
+    throw std::invalid_argument(msg);
+  }
   if (o.speeds_rpm.size() + 1 > kModelMaxBreakpoints)
     throw std::invalid_argument("reduce: at most " + std::to_string(kModelMaxBreakpoints - 1) + " operating speeds fit the firmware blob");
   for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {

@@ -10,6 +10,8 @@
 
 #include <cmath>
 #include <limits>
+#include <stdexcept>
+#include <string>
 
 namespace btsm::thermal {
 namespace {
@@ -103,6 +105,13 @@ RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd
   RecordingValidation v;
   v.source = rec.source;
   const auto cols = measurement_columns(net, rec);
+  // Metrics need two values of one measured column at least; with less every figure is NaN.
+  bool comparable = false;
+  for (const int c : cols)
+    comparable = comparable || (rec.temp_c.col(c).array().isFinite().count() >= 2);
+  if (!comparable)
+    throw std::invalid_argument(rec.source + ": nothing to validate against: no measured column has two temperature values (" +
+                                std::to_string(rec.rows()) + " rows)");
   v.initial_state_c = estimate_initial_state(net, params, rec, opts.initial_rows);
   v.predicted_c = simulate_recording(net, params, rec, v.initial_state_c);
   const auto rows = static_cast<Eigen::Index>(rec.rows());

@@ -101,7 +101,19 @@ int main(int argc, char** argv) {
   std::vector<uint8_t> nonce;
   printf("CHALLENGE: %d\n", wait_frame(0x04, nonce));
   depth("after MODEL_BEGIN");
-  uint8_t seq = 3;
+  {
+    uint8_t context[btsm::wire::kModelAuthContextSize];
+    btsm::wire::encode_model_auth_context(uint16_t(blob.size()), btsm::crc32(blob.data(), blob.size()), context);
+    btsm::HmacSha256 auth(key, 32);
+    auth.update(nonce.data(), 16);
+    auth.update(context, sizeof context);
+    std::vector<uint8_t> auth_tag(32);
+    auth.final(auth_tag.data());
+    send(btsm::wire::MsgType::ModelAuth, 3, auth_tag);
+    printf("MODEL_AUTH ACK: %d status %d\n", wait_frame(0x03, p), p.size() > 2 ? p[2] : -1);
+  }
+  depth("after MODEL_AUTH");
+  uint8_t seq = 4;
   for (size_t off = 0; off < blob.size();) {
     uint8_t n = btsm::wire::model_chunk_fit(seq, uint16_t(off), blob.data() + off, blob.size() - off);
     std::vector<uint8_t> c(2 + n);

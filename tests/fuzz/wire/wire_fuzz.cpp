@@ -74,6 +74,7 @@ void check_message(uint8_t type, const uint8_t* p, uint8_t len) {
     case MsgType::ModelCommit:
       check_codec(p, len, decode_model_commit, encode_model_commit);
       break;
+    case MsgType::ModelAuth: check_codec(p, len, decode_model_auth, encode_model_auth); break;
     case MsgType::ModelRead: check_codec(p, len, decode_model_read, encode_model_read); break;
     case MsgType::GetConfig: check_codec(p, len, decode_get_config, encode_get_config); break;
     case MsgType::GetInfo:

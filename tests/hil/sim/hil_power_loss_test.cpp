@@ -1,5 +1,6 @@
 // Host-in-the-loop, native board: power cuts at >= 200 random EEPROM-write positions while a
 // new model is committed; after every reboot the module runs a valid model, the old or the new.
+// And a host without the device key cannot change a single EEPROM byte.
 #include "boards/sim/native_board.hpp"
 #include "firmware/app.hpp"
 #include "model_upload.hpp"
@@ -107,6 +108,28 @@ TEST(HilPowerLoss, EveryBootHasTheOldOrTheNewModel) {
               static_cast<unsigned long long>(commit_writes), old_model, new_model);
   EXPECT_GT(old_model, 0);
   EXPECT_GT(new_model, 0);
+}
+
+// Everything a keyless host can send (chunks before and after a MODEL_AUTH with a wrong key's
+// tag, a commit with a wrong tag) is refused, and the whole EEPROM stays byte for byte as it was:
+// neither the inactive slot (the fallback model) nor its commit marker is written.
+TEST(HilUploadAuth, KeylessHostCannotChangeAnEepromByte) {
+  NativeLink l;
+  uint8_t seq = 0;
+  l.step(6.0);  // boot (its counter write) and a sweep
+  const std::vector<uint8_t> before = l.board.eeprom();
+  const uint64_t writes_before = l.board.eeprom_writes();
+  const KeylessAttempt r = keyless_upload(l, spindle_model_blob(1), seq);
+  l.step(1.0);
+  EXPECT_EQ(r.chunks_before_auth, int(wire::Nack::NoSession));
+  EXPECT_EQ(r.auth, int(wire::Nack::AuthFailed));
+  EXPECT_EQ(r.chunks_after_auth, int(wire::Nack::NoSession));
+  EXPECT_EQ(r.commit, int(wire::Nack::NoSession));
+  EXPECT_EQ(l.board.eeprom_writes(), writes_before);
+  EXPECT_TRUE(l.board.eeprom() == before) << "a keyless host changed EEPROM bytes";
+  // The key holder still can, right after.
+  EXPECT_EQ(upload_model(l, spindle_model_blob(1), seq), 0);
+  EXPECT_EQ(get_info(l, seq).model_crc, blob_stored_crc(spindle_model_blob(1).data()));
 }
 
 }  // namespace

@@ -1,7 +1,8 @@
 #pragma once
 // Test helper: a valid reduced-model blob for the spindle and the host side of the authenticated
-// model upload (MODEL_BEGIN -> AUTH_CHALLENGE, MODEL_CHUNKs each ACKed, MODEL_COMMIT with
-// HMAC-SHA256(device key, nonce || blob)), written over any simulated link.
+// model upload (MODEL_BEGIN -> AUTH_CHALLENGE, MODEL_AUTH with HMAC-SHA256(device key, nonce ||
+// auth context), MODEL_CHUNKs each ACKed, MODEL_COMMIT with HMAC-SHA256(device key, nonce ||
+// blob)), written over any simulated link; and the same upload tried by a host without the key.
 //
 // A Link provides: void send(const std::vector<uint8_t>&); void step(double sim_s);
 // test::Capture& capture().
@@ -82,9 +83,19 @@ bool wait_for(Link& link, double max_s, const std::function<bool()>& done, doubl
   return done();
 }
 
-// Sends everything up to (not including) MODEL_COMMIT. Returns the commit frame to send.
+// Sends one request and returns the status of its ACK (-1: no ACK within max_s).
 template <class Link>
-std::vector<uint8_t> prepare_upload(Link& link, const std::vector<uint8_t>& blob, uint8_t& seq) {
+int request_status(Link& link, wire::MsgType type, uint8_t& seq, const uint8_t* p, uint8_t len, double max_s = 2.0) {
+  Capture& cap = link.capture();
+  const size_t a0 = cap.acks.size();
+  link.send(frame(uint8_t(type), seq++, p, len));
+  if (!wait_for(link, max_s, [&] { return cap.acks.size() > a0; })) return -1;
+  return cap.acks.back().status;
+}
+
+// MODEL_BEGIN for `blob`; returns the module's nonce.
+template <class Link>
+wire::AuthChallenge begin_upload(Link& link, const std::vector<uint8_t>& blob, uint8_t& seq) {
   Capture& cap = link.capture();
   uint8_t p[wire::kMaxPayload];
   p[0] = uint8_t(blob.size());
@@ -94,7 +105,72 @@ std::vector<uint8_t> prepare_upload(Link& link, const std::vector<uint8_t>& blob
   link.send(frame(uint8_t(wire::MsgType::ModelBegin), seq++, p, 6));
   if (!wait_for(link, 2.0, [&] { return cap.challenges.size() > ch0; }))
     throw std::runtime_error("no AUTH_CHALLENGE after MODEL_BEGIN");
-  const wire::AuthChallenge nonce = cap.challenges.back();
+  return cap.challenges.back();
+}
+
+// MODEL_AUTH's tag with `key` for the MODEL_BEGIN of `blob` answered by `nonce`.
+inline std::array<uint8_t, 32> auth_tag(const std::array<uint8_t, 32>& key, const wire::AuthChallenge& nonce,
+                                        const std::vector<uint8_t>& blob) {
+  uint8_t context[wire::kModelAuthContextSize];
+  wire::encode_model_auth_context(uint16_t(blob.size()), crc32(blob.data(), blob.size()), context);
+  HmacSha256 mac(key.data(), key.size());
+  mac.update(nonce.nonce, wire::kNonceSize);
+  mac.update(context, sizeof context);
+  std::array<uint8_t, 32> tag{};
+  mac.final(tag.data());
+  return tag;
+}
+
+// Sends every chunk of `blob`; returns the first non-OK ACK status (0: all accepted, -1: no ACK).
+template <class Link>
+int send_chunks(Link& link, const std::vector<uint8_t>& blob, uint8_t& seq) {
+  uint8_t p[wire::kMaxPayload];
+  for (size_t off = 0; off < blob.size();) {
+    const uint8_t n = chunk_len_at(blob, off);
+    p[0] = uint8_t(off);
+    p[1] = uint8_t(off >> 8);
+    for (uint8_t i = 0; i < n; ++i) p[2 + i] = blob[off + i];
+    const int st = request_status(link, wire::MsgType::ModelChunk, seq, p, uint8_t(2 + n));
+    if (st != 0) return st;
+    off += n;
+  }
+  return 0;
+}
+
+// What a host without the device key can try, in order, with the module's answers: chunks right
+// after MODEL_BEGIN (what older firmware wrote into EEPROM), MODEL_AUTH with a tag of a wrong key,
+// chunks again, and MODEL_COMMIT with a wrong tag.
+struct KeylessAttempt {
+  int chunks_before_auth = 0, auth = 0, chunks_after_auth = 0, commit = 0;
+};
+template <class Link>
+KeylessAttempt keyless_upload(Link& link, const std::vector<uint8_t>& blob, uint8_t& seq) {
+  KeylessAttempt r;
+  auto wrong_key = development_key();
+  wrong_key[7] ^= 0x01;
+  const wire::AuthChallenge nonce = begin_upload(link, blob, seq);
+  r.chunks_before_auth = send_chunks(link, blob, seq);
+  const auto tag = auth_tag(wrong_key, nonce, blob);
+  r.auth = request_status(link, wire::MsgType::ModelAuth, seq, tag.data(), 32);
+  r.chunks_after_auth = send_chunks(link, blob, seq);
+  HmacSha256 mac(wrong_key.data(), wrong_key.size());
+  mac.update(nonce.nonce, wire::kNonceSize);
+  mac.update(blob.data(), blob.size());
+  uint8_t commit_tag[32];
+  mac.final(commit_tag);
+  r.commit = request_status(link, wire::MsgType::ModelCommit, seq, commit_tag, 32, 5.0);
+  return r;
+}
+
+// Sends everything up to (not including) MODEL_COMMIT. Returns the commit frame to send.
+template <class Link>
+std::vector<uint8_t> prepare_upload(Link& link, const std::vector<uint8_t>& blob, uint8_t& seq) {
+  Capture& cap = link.capture();
+  uint8_t p[wire::kMaxPayload];
+  const wire::AuthChallenge nonce = begin_upload(link, blob, seq);
+  const auto auth_tag_bytes = auth_tag(development_key(), nonce, blob);
+  const int auth = request_status(link, wire::MsgType::ModelAuth, seq, auth_tag_bytes.data(), 32);
+  if (auth != 0) throw std::runtime_error("MODEL_AUTH refused, code " + std::to_string(auth));
   for (size_t off = 0; off < blob.size();) {
     const uint8_t n = chunk_len_at(blob, off);
     p[0] = uint8_t(off);

@@ -1,6 +1,7 @@
 // The real AVR image in simavr: power cuts at >= 200 random EEPROM-write positions while a new
-// model is uploaded; every boot afterwards reports a valid model, the old or the new one. And a
-// power cycle in the middle of measuring: the module comes back and measures again.
+// model is uploaded; every boot afterwards reports a valid model, the old or the new one. A host
+// without the device key cannot change a single EEPROM byte. And a power cycle in the middle of
+// measuring: the module comes back and measures again.
 #include "avr_link.hpp"
 #include "host/sim/plant/probes.hpp"
 #include "tests/hil/sim/model_upload.hpp"
@@ -78,6 +79,26 @@ TEST_F(AvrPowerLoss, EveryBootHasTheOldOrTheNewModel) {
 // After a power cycle the image boots, calibrates and streams good temperatures again (the
 // simulated DOUT/RDY line must read high again after the reset: a stale low made every
 // calibration "finish" at once and the firmware re-initialise the chip for ever).
+// The keyless host of HilUploadAuth against the real image: every step refused, the whole EEPROM
+// byte for byte unchanged, no EEPROM write at all.
+TEST_F(AvrPowerLoss, KeylessHostCannotChangeAnEepromByte) {
+  AvrLink l;
+  uint8_t seq = 0;
+  l.step(1.0);  // boot (its counter write) and a sweep
+  const std::vector<uint8_t> before = l.h->eeprom();
+  const uint64_t writes_before = l.h->stats().eeprom_writes;
+  const KeylessAttempt r = keyless_upload(l, spindle_model_blob(1), seq);
+  l.step(0.5);
+  EXPECT_EQ(r.chunks_before_auth, int(wire::Nack::NoSession));
+  EXPECT_EQ(r.auth, int(wire::Nack::AuthFailed));
+  EXPECT_EQ(r.chunks_after_auth, int(wire::Nack::NoSession));
+  EXPECT_EQ(r.commit, int(wire::Nack::NoSession));
+  EXPECT_EQ(l.h->stats().eeprom_writes, writes_before);
+  EXPECT_TRUE(l.h->eeprom() == before) << "a keyless host changed EEPROM bytes";
+  EXPECT_EQ(upload_model(l, spindle_model_blob(1), seq), 0);
+  EXPECT_EQ(get_info(l, seq).model_crc, blob_stored_crc(spindle_model_blob(1).data()));
+}
+
 TEST_F(AvrPowerLoss, MeasuresAgainAfterAPowerCycle) {
   AvrLink l;
   const double temps[5] = {20.0, 35.5, 42.0, 22.0, 60.0};

@@ -158,6 +158,24 @@ TEST(WireMessages, FixedBlobMessagesRoundTrip) {
   ASSERT_EQ(cp.size(), kHmacSize);
   expect_canonical(cp, decode_model_commit, encode_model_commit);
   expect_rejects_other_lengths(type_code(MsgType::ModelCommit), decode_model_commit);
+
+  ModelAuth a{};
+  for (uint8_t i = 0; i < kHmacSize; ++i) a.hmac[i] = static_cast<uint8_t>(200 - i);
+  const Bytes ap = testing::payload_of(a, encode_model_auth);
+  ASSERT_EQ(ap.size(), kHmacSize);
+  expect_canonical(ap, decode_model_auth, encode_model_auth);
+  expect_rejects_other_lengths(type_code(MsgType::ModelAuth), decode_model_auth);
+}
+
+// The bytes MODEL_AUTH's tag covers after the nonce: its own type code (so no commit tag can
+// serve as an auth tag), then the MODEL_BEGIN values, little-endian.
+TEST(WireMessages, ModelAuthContextLayout) {
+  uint8_t ctx[kModelAuthContextSize];
+  encode_model_auth_context(464, 0x11223344, ctx);
+  const Bytes want = {0x4A, 0xD0, 0x01, 0x44, 0x33, 0x22, 0x11};
+  EXPECT_EQ(Bytes(ctx, ctx + kModelAuthContextSize), want);
+  EXPECT_STREQ(msg_type_name(0x4A), "MODEL_AUTH");
+  EXPECT_TRUE(is_host_to_module(type_code(MsgType::ModelAuth)));
 }
 
 TEST(WireMessages, ModelBytesLengthsOffsetsAndBounds) {
@@ -340,8 +358,8 @@ TEST(WireMessages, TypeCodesNamesAndDirections) {
     ++known;
     names.insert(n);
   }
-  EXPECT_EQ(known, 16);
-  EXPECT_EQ(names.size(), 16u);
+  EXPECT_EQ(known, 17);
+  EXPECT_EQ(names.size(), 17u);
   EXPECT_FALSE(is_host_to_module(type_code(MsgType::Sample)));
   EXPECT_TRUE(is_host_to_module(type_code(MsgType::ModelCommit)));
 }

@@ -120,6 +120,9 @@ inline std::vector<NamedFrame> representative_frames() {
   f.push_back({"GET_CONFIG", type_code(MsgType::GetConfig), 16,
                payload_of(GetConfig{static_cast<uint8_t>(ConfigKey::SamplePeriodMs)},
                           encode_get_config)});
+  ModelAuth auth{};
+  for (uint8_t i = 0; i < kHmacSize; ++i) auth.hmac[i] = static_cast<uint8_t>(i * 29 + 0x7D);
+  f.push_back({"MODEL_AUTH", type_code(MsgType::ModelAuth), 17, payload_of(auth, encode_model_auth)});
   // Every byte of the maximum payload needs escaping: 130 wire bytes.
   f.push_back({"MAX_ALL_FLAGS", 0x7E, 0x7D, Bytes(kMaxPayload, kFlag)});
   f.push_back({"MAX_ALL_PLUS", 0x2B, 0x2B, Bytes(kMaxPayload, kAtModeChar)});

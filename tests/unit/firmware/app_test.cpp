@@ -75,7 +75,20 @@ struct AppFixture : ::testing::Test {
     return i;
   }
 
-  // Full upload over the protocol; returns the COMMIT ACK status.
+  // MODEL_AUTH's tag for the MODEL_BEGIN of `blob` answered with `nonce`.
+  static std::vector<uint8_t> auth_tag(const std::array<uint8_t, 32>& key, const std::vector<uint8_t>& nonce,
+                                       const std::vector<uint8_t>& blob) {
+    uint8_t context[wire::kModelAuthContextSize];
+    wire::encode_model_auth_context(static_cast<uint16_t>(blob.size()), crc32(blob.data(), blob.size()), context);
+    HmacSha256 mac(key.data(), key.size());
+    mac.update(nonce.data(), nonce.size());
+    mac.update(context, sizeof context);
+    std::vector<uint8_t> tag(32);
+    mac.final(tag.data());
+    return tag;
+  }
+
+  // Full upload over the protocol; returns the status of the first refusal or of the COMMIT ACK.
   uint8_t upload(const std::vector<uint8_t>& blob, const std::array<uint8_t, 32>& key, std::vector<uint8_t>* commit_payload = nullptr) {
     std::vector<uint8_t> p(6);
     put_le16(p.data(), static_cast<uint16_t>(blob.size()));
@@ -83,6 +96,8 @@ struct AppFixture : ::testing::Test {
     auto ch = request(wire::MsgType::ModelBegin, p, wire::MsgType::AuthChallenge);
     if (!ch || ch->type != wire::type_code(wire::MsgType::AuthChallenge)) return ack_of(ch).status;
     EXPECT_EQ(ch->payload.size(), 16u);
+    const wire::Ack auth = ack_of(request(wire::MsgType::ModelAuth, auth_tag(key, ch->payload, blob), wire::MsgType::Ack));
+    if (auth.status != 0) return auth.status;
     size_t off = 0;
     while (off < blob.size()) {
       const uint8_t n = wire::model_chunk_fit(seq, static_cast<uint16_t>(off), blob.data() + off, blob.size() - off);
@@ -286,6 +301,40 @@ TEST_F(AppFixture, AuthenticatedModelUploadAndRefusals) {
   board->mcu_reset();
   restart();
   EXPECT_EQ(app->model_seq(), 1u);
+}
+
+// A host without the key: MODEL_BEGIN gets its nonce, but nothing it sends afterwards writes EEPROM.
+TEST_F(AppFixture, KeylessHostWritesNoEepromByte) {
+  boot();
+  run(6.0);
+  const auto key = test::dev_key();
+  ASSERT_EQ(upload(test::model_blob(), key), 0);
+  run(1.0);
+  const std::vector<uint8_t> image = board->eeprom();
+  const uint64_t writes = board->eeprom_writes();
+  auto wrong = key;
+  wrong[0] ^= 0x40;
+  const auto blob = test::model_blob(1.0);
+  std::vector<uint8_t> p(6);
+  put_le16(p.data(), static_cast<uint16_t>(blob.size()));
+  put_le32(p.data() + 2, crc32(blob.data(), blob.size()));
+  auto ch = request(wire::MsgType::ModelBegin, p, wire::MsgType::AuthChallenge);
+  ASSERT_TRUE(ch && ch->type == wire::type_code(wire::MsgType::AuthChallenge));
+  std::vector<uint8_t> chunk(2 + 8);
+  std::copy(blob.begin(), blob.begin() + 8, chunk.begin() + 2);
+  EXPECT_EQ(ack_of(request(wire::MsgType::ModelChunk, chunk, wire::MsgType::Ack)).status,
+            static_cast<uint8_t>(wire::Nack::NoSession));
+  EXPECT_EQ(ack_of(request(wire::MsgType::ModelAuth, auth_tag(wrong, ch->payload, blob), wire::MsgType::Ack)).status,
+            static_cast<uint8_t>(wire::Nack::AuthFailed));
+  // The nonce is spent: the right tag for it no longer opens the session.
+  EXPECT_EQ(ack_of(request(wire::MsgType::ModelAuth, auth_tag(key, ch->payload, blob), wire::MsgType::Ack)).status,
+            static_cast<uint8_t>(wire::Nack::NoSession));
+  EXPECT_EQ(ack_of(request(wire::MsgType::ModelChunk, chunk, wire::MsgType::Ack)).status,
+            static_cast<uint8_t>(wire::Nack::NoSession));
+  run(1.0);
+  EXPECT_EQ(board->eeprom_writes(), writes);
+  EXPECT_TRUE(board->eeprom() == image);
+  EXPECT_EQ(info().model_seq, 1u);
 }
 
 TEST_F(AppFixture, DeviceWithoutKeyRefusesModelWrites) {

@@ -30,13 +30,26 @@ std::array<uint8_t, 32> tag_for(const std::array<uint8_t, 32>& key, const uint8_
   return tag;
 }
 
+std::array<uint8_t, 32> auth_tag_for(const std::array<uint8_t, 32>& key, const uint8_t* nonce,
+                                     const std::vector<uint8_t>& blob) {
+  uint8_t context[wire::kModelAuthContextSize];
+  wire::encode_model_auth_context(static_cast<uint16_t>(blob.size()), crc32(blob.data(), blob.size()), context);
+  HmacSha256 mac(key.data(), key.size());
+  mac.update(nonce, 16);
+  mac.update(context, sizeof context);
+  std::array<uint8_t, 32> tag;
+  mac.final(tag.data());
+  return tag;
+}
+
 struct Upload {
-  Nack begin = Nack::Ok, last_chunk = Nack::Ok, commit = Nack::Ok;
+  Nack begin = Nack::Ok, auth = Nack::Ok, last_chunk = Nack::Ok, commit = Nack::Ok;
   uint16_t detail = 0;
   bool power_lost = false;
 };
 
-// Runs a whole upload through the store, stepping EEPROM writes; stops at a power loss.
+// Runs a whole upload through the store, stepping EEPROM writes; stops at a power loss. `key` is
+// the host's key (MODEL_AUTH and commit tags), `device_key` the module's.
 Upload upload(sim::NativeBoard& board, ModelStore<Storage>& store, ModelRuntime& model,
               const std::vector<uint8_t>& blob, const std::array<uint8_t, 32>& key,
               const std::array<uint8_t, 32>& device_key, uint8_t nonce_byte = 7,
@@ -51,9 +64,11 @@ Upload upload(sim::NativeBoard& board, ModelStore<Storage>& store, ModelRuntime&
     }
     return true;
   };
-  u.begin = store.begin(static_cast<uint16_t>(blob.size()), crc32(blob.data(), blob.size()), nonce, 16,
-                        device_key.data(), 32);
+  u.begin = store.begin(static_cast<uint16_t>(blob.size()), crc32(blob.data(), blob.size()), nonce);
   if (u.begin != Nack::Ok) return u;
+  const auto auth = auth_tag_for(key, nonce, blob);
+  u.auth = store.authenticate(auth.data(), device_key.data(), 32);
+  if (u.auth != Nack::Ok) return u;
   if (!drain()) { u.power_lost = true; return u; }
   for (size_t off = 0; off < blob.size(); off += 11) {
     const uint8_t n = static_cast<uint8_t>(std::min<size_t>(11, blob.size() - off));
@@ -217,11 +232,15 @@ TEST(ModelStore, WrongKeyReplayAndProtocolErrorsAreRefused) {
   const auto key = test::dev_key();
   const auto blob = test::model_blob();
   ASSERT_EQ(upload(board, store, m, blob, key, key).commit, Nack::Ok);
-  // Tag made with another key.
+  // Tags made with another key: MODEL_AUTH refuses, and nothing of the upload is written.
   auto other = key;
   other[0] ^= 0x80;
   const auto blob2 = test::model_blob(2.0);
-  EXPECT_EQ(upload(board, store, m, blob2, other, key).commit, Nack::AuthFailed);
+  const std::vector<uint8_t> image = board.eeprom();
+  const uint64_t writes = board.eeprom_writes();
+  EXPECT_EQ(upload(board, store, m, blob2, other, key).auth, Nack::AuthFailed);
+  EXPECT_EQ(board.eeprom_writes(), writes);
+  EXPECT_TRUE(board.eeprom() == image);
   EXPECT_EQ(active_blob(store), blob);
   // Replay: the tag of an earlier session (nonce 7) presented in a session with nonce 9.
   uint8_t nonce7[16];
@@ -234,10 +253,44 @@ TEST(ModelStore, WrongKeyReplayAndProtocolErrorsAreRefused) {
   EXPECT_EQ(store.commit(old_tag.data(), detail), Nack::NoSession);
   uint8_t data[4] = {1, 2, 3, 4};
   EXPECT_EQ(store.chunk(0, data, 4, detail), Nack::NoSession);
-  // Wrong total length and out-of-order chunk.
+  // Chunks and commit after MODEL_BEGIN but before MODEL_AUTH; MODEL_AUTH without MODEL_BEGIN;
+  // a second MODEL_AUTH with the spent nonce. None of it writes EEPROM.
+  const std::vector<uint8_t> before_sessions = board.eeprom();
   uint8_t nonce[16] = {};
-  EXPECT_EQ(store.begin(100, 0, nonce, 16, key.data(), 32), Nack::BadLength);
-  ASSERT_EQ(store.begin(static_cast<uint16_t>(kReducedModelBlobSize), 0, nonce, 16, key.data(), 32), Nack::Ok);
+  EXPECT_EQ(store.authenticate(old_tag.data(), key.data(), 32), Nack::NoSession);
+  ASSERT_EQ(store.begin(static_cast<uint16_t>(blob2.size()), crc32(blob2.data(), blob2.size()), nonce), Nack::Ok);
+  EXPECT_EQ(store.chunk(0, data, 4, detail), Nack::NoSession);
+  EXPECT_FALSE(store.busy());
+  const auto good_auth = auth_tag_for(key, nonce, blob2);
+  auto bad_auth = good_auth;
+  bad_auth[31] ^= 1;
+  EXPECT_EQ(store.authenticate(bad_auth.data(), key.data(), 32), Nack::AuthFailed);
+  EXPECT_EQ(store.authenticate(good_auth.data(), key.data(), 32), Nack::NoSession);
+  EXPECT_FALSE(store.busy());
+  // The auth tag covers the announced length and CRC: a tag for blob2 does not open a session
+  // announced with another CRC, and a commit tag is no auth tag. (Every valid blob ends with its
+  // own CRC-32, so the CRC-32 over all of it is the same residue for every valid blob: the content
+  // is bound by the commit tag, not by this one.)
+  EXPECT_EQ(crc32(blob.data(), blob.size()), crc32(blob2.data(), blob2.size()));
+  ASSERT_EQ(store.begin(static_cast<uint16_t>(blob2.size()), crc32(blob2.data(), blob2.size()) ^ 1u, nonce), Nack::Ok);
+  EXPECT_EQ(store.authenticate(good_auth.data(), key.data(), 32), Nack::AuthFailed);
+  ASSERT_EQ(store.begin(static_cast<uint16_t>(blob2.size()), crc32(blob2.data(), blob2.size()), nonce), Nack::Ok);
+  EXPECT_EQ(store.authenticate(tag_for(key, nonce, blob2).data(), key.data(), 32), Nack::AuthFailed);
+  EXPECT_FALSE(store.busy());
+  EXPECT_TRUE(board.eeprom() == before_sessions);
+  // Wrong total length and out-of-order chunk.
+  EXPECT_EQ(store.begin(100, 0, nonce), Nack::BadLength);
+  ASSERT_EQ(store.begin(static_cast<uint16_t>(kReducedModelBlobSize), 0, nonce), Nack::Ok);
+  uint8_t zero_context[wire::kModelAuthContextSize];
+  wire::encode_model_auth_context(static_cast<uint16_t>(kReducedModelBlobSize), 0, zero_context);
+  std::array<uint8_t, 32> zero_auth;
+  {
+    HmacSha256 mac(key.data(), key.size());
+    mac.update(nonce, 16);
+    mac.update(zero_context, sizeof zero_context);
+    mac.final(zero_auth.data());
+  }
+  ASSERT_EQ(store.authenticate(zero_auth.data(), key.data(), 32), Nack::Ok);
   while (store.busy()) store.step();
   EXPECT_EQ(store.chunk(11, data, 4, detail), Nack::BadOffset);
   EXPECT_EQ(detail, 0u);

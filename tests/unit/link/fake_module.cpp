@@ -75,6 +75,11 @@ std::vector<uint8_t> FakeModule::active_model() const {
   std::lock_guard<std::mutex> l(mu_);
   return active_;
 }
+uint64_t FakeModule::staged_bytes() const {
+  std::lock_guard<std::mutex> l(mu_);
+  return staged_bytes_;
+}
+
 uint32_t FakeModule::model_seq() const {
   std::lock_guard<std::mutex> l(mu_);
   return model_seq_;
@@ -130,7 +135,14 @@ void FakeModule::ack(uint8_t seq, uint8_t type, Nack status, uint16_t detail) {
   send(MsgType::Ack, seq, p, encode_ack(a, p));
 }
 
+// Closes the module's end of the link (the host sees the device hang up); under mu_.
+void FakeModule::hang_up() {
+  const int old = fd_.exchange(-1);
+  if (old >= 0) ::close(old);
+}
+
 void FakeModule::end_upload() {
+  upload_challenged_ = false;
   upload_open_ = false;
   staging_.clear();
   nonce_.fill(0);
@@ -193,7 +205,9 @@ void FakeModule::handle(uint8_t type, uint8_t seq, const uint8_t* p, uint8_t len
       ModelBegin b{};
       if (!decode_model_begin(p, len, b)) return ack(seq, type, Nack::BadValue);
       end_upload();
-      upload_open_ = true;
+      // A firmware before MODEL_AUTH opened the staging area right here.
+      upload_challenged_ = !opts_.legacy_upload;
+      upload_open_ = opts_.legacy_upload;
       staging_len_ = b.total_len;
       staging_crc_ = b.blob_crc32;
       // Fresh nonce: a counter mixed through SHA-256 is unpredictable enough for a test double.
@@ -209,6 +223,27 @@ void FakeModule::handle(uint8_t type, uint8_t seq, const uint8_t* p, uint8_t len
       send(MsgType::AuthChallenge, seq, out, encode_auth_challenge(ch, out));
       return;
     }
+    case MsgType::ModelAuth: {
+      if (opts_.legacy_upload) return ack(seq, type, Nack::UnknownType);
+      ModelAuth a{};
+      decode_model_auth(p, len, a);
+      if (!upload_challenged_) return ack(seq, type, Nack::NoSession);
+      upload_challenged_ = false;  // one attempt per nonce
+      uint8_t context[kModelAuthContextSize];
+      encode_model_auth_context(staging_len_, staging_crc_, context);
+      uint8_t tag[32];
+      HmacSha256 mac;
+      mac.init(opts_.key.data(), opts_.key.size());
+      mac.update(nonce_.data(), nonce_.size());
+      mac.update(context, sizeof context);
+      mac.final(tag);
+      if (!constant_time_equal(tag, a.hmac, 32)) {
+        end_upload();
+        return ack(seq, type, Nack::AuthFailed);
+      }
+      upload_open_ = true;
+      return ack(seq, type, Nack::Ok);
+    }
     case MsgType::ModelChunk: {
       ModelChunk c{};
       if (!decode_model_chunk(p, len, c)) return ack(seq, type, Nack::BadLength);
@@ -217,6 +252,7 @@ void FakeModule::handle(uint8_t type, uint8_t seq, const uint8_t* p, uint8_t len
       if (c.offset != staging_.size() || c.offset + c.len > staging_len_)
         return ack(seq, type, Nack::BadOffset, static_cast<uint16_t>(staging_.size()));
       staging_.insert(staging_.end(), c.data, c.data + c.len);
+      staged_bytes_ += c.len;
       return ack(seq, type, Nack::Ok);
     }
     case MsgType::ModelCommit: {
@@ -263,7 +299,14 @@ void FakeModule::handle(uint8_t type, uint8_t seq, const uint8_t* p, uint8_t len
       active_ = blob;
       ++model_seq_;
       ++accepted_;
-      return ack(seq, type, Nack::Ok);
+      if (opts_.hang_up == FakeModuleOptions::HangUp::kBeforeCommitAck) return hang_up();
+      ack(seq, type, Nack::Ok);
+      if (opts_.hang_up == FakeModuleOptions::HangUp::kAfterCommitAck) {
+        // Let the host read the ACK first: a pty drops what its slave has not read at hang-up.
+        std::this_thread::sleep_for(std::chrono::milliseconds(100));
+        hang_up();
+      }
+      return;
     }
     case MsgType::ModelRead: {
       ModelRead r{};

@@ -2,11 +2,12 @@
 // In-process fake BTSM module for the link tests: speaks the wire protocol with the common
 // codecs over any stream fd (pty master, socketpair), streams SAMPLEs whose content is a pure
 // function of sample_index (so a test can check every accepted sample bit for bit), and
-// implements the model upload with the contract's two-phase commit: MODEL_BEGIN opens a staging
-// area and issues a fresh single-use nonce, chunks fill it strictly in order, MODEL_COMMIT
-// checks length, CRC-32, HMAC-SHA256(key, nonce || blob) and the blob itself and only then
-// replaces the active model. Any failure ends the upload session and keeps the old model.
-// Not App<NativeBoard> (test_sim_module.cpp): it cannot be told to send index-derived samples, BUSY, an old NACK or pause.
+// implements the model upload with the contract's two-phase commit: MODEL_BEGIN issues a fresh
+// single-use nonce, MODEL_AUTH proves the key (HMAC over nonce || 0x4A || len || crc) and only
+// then opens the staging area, chunks fill it strictly in order, MODEL_COMMIT checks length,
+// CRC-32, HMAC-SHA256(key, nonce || blob) and the blob itself and only then replaces the active
+// model. Any failure ends the upload session and keeps the old model.
+// Not App<NativeBoard> (test_sim_module.cpp): it cannot be told to send index-derived samples, BUSY, an old NACK, pause or speak an older firmware's upload.
 #include "common/wire_frame.hpp"
 #include "common/wire_messages.hpp"
 
@@ -32,6 +33,10 @@ struct FakeModuleOptions {
   bool answer_get_config = true;            // false: NACK UNKNOWN_TYPE like an older firmware
   uint32_t sample_time_step_ms = 5000;      // module time between samples
   uint32_t busy_every = 0;                  // answer every Nth MODEL_CHUNK with BUSY (0 = never)
+  bool legacy_upload = false;               // a firmware before MODEL_AUTH: chunks right after MODEL_BEGIN
+  // The link dies at an accepted MODEL_COMMIT: before its ACK is sent, or right after it.
+  enum class HangUp { kNever, kBeforeCommitAck, kAfterCommitAck };
+  HangUp hang_up = HangUp::kNever;
 };
 
 class FakeModule {
@@ -49,6 +54,8 @@ class FakeModule {
   uint32_t model_seq() const;
   uint32_t commits_accepted() const;
   uint32_t commits_refused() const;
+  // Blob bytes ever accepted into the staging area (the fake's "EEPROM writes" of uploads).
+  uint64_t staged_bytes() const;
   uint16_t speed() const;
   uint32_t samples_sent() const;
   // Every MODEL_COMMIT payload received, in order (to replay one).
@@ -66,6 +73,7 @@ class FakeModule {
   void send(wire::MsgType type, uint8_t seq, const uint8_t* payload, uint8_t len);
   void ack(uint8_t seq, uint8_t type, wire::Nack status, uint16_t detail = 0);
   void end_upload();
+  void hang_up();
 
   FakeModuleOptions opts_;
   std::atomic<int> fd_;
@@ -80,7 +88,9 @@ class FakeModule {
   uint16_t speed_ = 0;
   uint32_t model_seq_ = 0;
   std::vector<uint8_t> active_;
-  bool upload_open_ = false;
+  bool upload_challenged_ = false;  // MODEL_BEGIN answered, MODEL_AUTH not yet
+  bool upload_open_ = false;        // authenticated: chunks are accepted
+  uint64_t staged_bytes_ = 0;
   std::array<uint8_t, 16> nonce_{};
   std::vector<uint8_t> staging_;
   uint16_t staging_len_ = 0;

@@ -1,6 +1,7 @@
 // The link commands as a user runs them: a separate process (btsm_link_cli = main.cpp +
 // cmd_link.cpp) against the in-process fake module on a pty, with HOME in a temp dir.
 #include "fake_module.hpp"
+#include "common/reduced_model.hpp"
 #include "firmware/device_key.hpp"
 #include "host/link/firmware_image.hpp"
 #include "host/sim/runner/sim_module.hpp"
@@ -165,6 +166,75 @@ TEST(LinkCli, KeysAndFlashModel) {
   r = run(home, "flash-model --port " + m.pty.path + " " + home.path + "/model.bin");
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("chmod 600"), std::string::npos) << r.err;
+}
+
+std::string dev_key_hex() {
+  std::string dev;
+  for (int i = 0; i < 32; ++i) dev += fmt::format("{:02x}", i);
+  return dev;
+}
+
+// flash-model's own inputs: a JSON naming a device as its blob file, hex that is not hex or has
+// an odd number of digits, a JSON without a blob, key files with bad content. Each is bad input,
+// exit 2 (they were 1; /dev/zero never returned), refused before a byte goes to the module.
+TEST(LinkCli, FlashModelBadInputIsExitTwoAndFast) {
+  test::TempDir home;
+  ModuleOnPty m;
+  ASSERT_EQ(run(home, "keys import 0000de70 " + dev_key_hex()).code, 0);
+  const auto blob = test::make_test_blob(1);
+  std::string blob_hex;
+  for (uint8_t b : blob) blob_hex += fmt::format("{:02x}", b);
+  std::ofstream(home.path + "/zero.json") << R"({"blob_file": "/dev/zero"})";
+  std::ofstream(home.path + "/nonhex.json") << R"({"blob_hex": ")" << blob_hex.substr(0, 100) << "zz" << blob_hex.substr(102) << R"("})";
+  std::ofstream(home.path + "/odd.json") << R"({"blob_hex": ")" << blob_hex.substr(1) << R"("})";
+  std::ofstream(home.path + "/noblob.json") << R"({"dt_ms": 5000})";
+  std::ofstream(home.path + "/ok.json") << R"({"blob_hex": ")" << blob_hex << R"("})";
+  const std::string cli = std::string("timeout -s KILL 20 ") + BTSM_CLI;
+  for (const char* f : {"zero.json", "nonhex.json", "odd.json", "noblob.json", "/dev/zero"}) {
+    const std::string path = f[0] == '/' ? f : home.path + "/" + f;
+    const Result r = run(home, "flash-model --port " + m.pty.path + " " + path, cli);
+    EXPECT_EQ(r.code, 2) << f << "\n" << r.err;
+  }
+  EXPECT_NE(run(home, "flash-model --port " + m.pty.path + " " + home.path + "/nonhex.json", cli).err.find("'z' at character 101"),
+            std::string::npos);
+  // Key files with bad content, each the right name and mode.
+  const std::string keydir = home.path + "/other";
+  ::mkdir(keydir.c_str(), 0700);
+  const std::string keyfile = keydir + "/0000de70.key";
+  for (const std::string& content : {std::string("not a key\n"), dev_key_hex().substr(2) + "\n", dev_key_hex() + "00\n",
+                                     dev_key_hex() + "\n" + std::string(5000, ' ')}) {
+    std::ofstream(keyfile, std::ios::trunc) << content;
+    ::chmod(keyfile.c_str(), 0600);
+    const Result r = run(home, "flash-model --port " + m.pty.path + " --key-file " + keyfile + " " + home.path + "/ok.json", cli);
+    EXPECT_EQ(r.code, 2) << content.substr(0, 20) << "\n" << r.err;
+    EXPECT_NE(r.err.find(keyfile), std::string::npos) << r.err;
+  }
+  EXPECT_TRUE(m.module.active_model().empty());
+  EXPECT_EQ(m.module.staged_bytes(), 0u);
+  // The good JSON with the good key file goes through.
+  std::ofstream(keyfile, std::ios::trunc) << dev_key_hex() << "\n";
+  const Result ok = run(home, "flash-model --port " + m.pty.path + " --key-file " + keyfile + " " + home.path + "/ok.json", cli);
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_EQ(m.module.active_model(), blob);
+}
+
+// The link lost once MODEL_COMMIT is sent: exit 3 as for any lost link, but the message says the
+// outcome is unknown and how to check it -- the module did take the model.
+TEST(LinkCli, FlashModelLinkLostAtTheCommitSaysHowToCheck) {
+  test::TempDir home;
+  test::FakeModuleOptions o;
+  o.hang_up = test::FakeModuleOptions::HangUp::kBeforeCommitAck;
+  ModuleOnPty m(o);
+  ASSERT_EQ(run(home, "keys import 0000de70 " + dev_key_hex()).code, 0);
+  const auto blob = test::make_test_blob(2);
+  std::ofstream(home.path + "/model.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
+  const Result r = run(home, "flash-model --timeout 0.5 --port " + m.pty.path + " " + home.path + "/model.bin");
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_NE(r.err.find("unknown"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find("btsm info"), std::string::npos) << r.err;
+  EXPECT_NE(r.err.find(fmt::format("{:08x}", blob_stored_crc(blob.data()))), std::string::npos) << r.err;
+  EXPECT_EQ(m.module.model_seq(), 1u);
 }
 
 TEST(LinkCli, FlashFirmwareDryRunPatchesTheKey) {

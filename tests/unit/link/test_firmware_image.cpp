@@ -33,11 +33,11 @@ TEST(IntelHex, RoundTripAndChecksums) {
   try {
     parse_intel_hex(bad, "bad.hex");
     FAIL();
-  } catch (const std::runtime_error& e) {
+  } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("bad.hex:1"), std::string::npos) << e.what();
   }
-  EXPECT_THROW(parse_intel_hex(":0300300002337A1E\n", "noeof"), std::runtime_error);
-  EXPECT_THROW(parse_intel_hex("0300300002337A1E\n:00000001FF\n", "nocolon"), std::runtime_error);
+  EXPECT_THROW(parse_intel_hex(":0300300002337A1E\n", "noeof"), std::invalid_argument);
+  EXPECT_THROW(parse_intel_hex("0300300002337A1E\n:00000001FF\n", "nocolon"), std::invalid_argument);
   // Above 64 KiB an extended linear address record appears.
   HexImage big;
   big.bytes[0x10005] = 0xAB;
@@ -69,10 +69,10 @@ TEST(KeyPatch, PatchesErasedRecordAndReadsItBack) {
 TEST(KeyPatch, RefusesImagesWithoutOrWithForeignRecord) {
   DeviceKey key{};
   HexImage none = test_image(false);
-  EXPECT_THROW(patch_device_key(none, 1, key), std::runtime_error);
+  EXPECT_THROW(patch_device_key(none, 1, key), std::invalid_argument);
   HexImage foreign = test_image(true);
   foreign.bytes[device_key::kFlashAddress + 3] = 0x12;
-  EXPECT_THROW(patch_device_key(foreign, 1, key), std::runtime_error);
+  EXPECT_THROW(patch_device_key(foreign, 1, key), std::invalid_argument);
 }
 
 TEST(Avrdude, CommandUsesTheBlunoUnoSettings) {

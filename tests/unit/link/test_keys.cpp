@@ -71,7 +71,7 @@ TEST(KeyStore, RefusesGroupOrWorldAccessibleKeyFiles) {
     try {
       ks.load(7);
       FAIL() << std::oct << m;
-    } catch (const std::runtime_error& e) {
+    } catch (const std::invalid_argument& e) {
       EXPECT_NE(std::string(e.what()).find("chmod 600"), std::string::npos) << e.what();
     }
   }
@@ -85,13 +85,13 @@ TEST(KeyStore, MalformedAndMissingKeysAreClearErrors) {
   try {
     ks.load(0x1234);
     FAIL();
-  } catch (const std::runtime_error& e) {
+  } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find("btsm keys generate 00001234"), std::string::npos) << e.what();
   }
   ks.save(1, KeyStore::generate());
   ::chmod(ks.path_for(1).c_str(), 0600);
   std::ofstream(ks.path_for(1)) << "abcd\n";
-  EXPECT_THROW(ks.load(1), std::runtime_error);
+  EXPECT_THROW(ks.load(1), std::invalid_argument);
   EXPECT_FALSE(key_from_hex(std::string(63, 'a')));
   EXPECT_FALSE(key_from_hex(std::string(64, 'g')));
   EXPECT_TRUE(key_from_hex(std::string(64, 'A')));

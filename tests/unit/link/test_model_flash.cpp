@@ -1,12 +1,16 @@
 // Model upload against the fake module: round trip with read-back, 20-byte chunk frames,
-// wrong key, replayed commit, invalid blobs, blob file formats.
+// wrong key (refused before any chunk), firmware without MODEL_AUTH, replayed commit, invalid
+// blobs, blob file formats, the link lost at the commit.
 #include "common/crc.hpp"
+#include "common/reduced_model.hpp"
 #include "fake_module.hpp"
 #include "host/link/model_flash.hpp"
 #include "host/link/serial_transport.hpp"
 #include "link_test_support.hpp"
 
 #include <gtest/gtest.h>
+
+#include <fmt/format.h>
 
 #include <fstream>
 #include <iostream>
@@ -59,6 +63,7 @@ TEST(FlashModel, WrongKeyIsRefusedAndOldModelKept) {
   Rig rig;
   const auto old_blob = test::make_test_blob(1);
   flash_model(rig.session, old_blob, test::fake_module_key());
+  const uint64_t staged = rig.module.staged_bytes();
   DeviceKey wrong = test::fake_module_key();
   wrong[5] ^= 0x01;
   try {
@@ -66,8 +71,10 @@ TEST(FlashModel, WrongKeyIsRefusedAndOldModelKept) {
     FAIL() << "expected AUTH_FAILED";
   } catch (const NackError& e) {
     EXPECT_EQ(e.code(), static_cast<uint8_t>(wire::Nack::AuthFailed));
+    EXPECT_EQ(e.request_type(), wire::type_code(wire::MsgType::ModelAuth)) << "refused at MODEL_AUTH, before any chunk";
     EXPECT_NE(std::string(e.what()).find("AUTH_FAILED"), std::string::npos);
   }
+  EXPECT_EQ(rig.module.staged_bytes(), staged);
   EXPECT_EQ(rig.module.active_model(), old_blob);
   EXPECT_EQ(rig.module.model_seq(), 1u);
   EXPECT_EQ(read_model(rig.session, old_blob.size()), old_blob);
@@ -87,18 +94,23 @@ TEST(FlashModel, ReplayedCommitIsRefused) {
   } catch (const NackError& e) {
     EXPECT_EQ(e.code(), static_cast<uint8_t>(wire::Nack::NoSession));
   }
-  // 2. Replay inside a fresh session with the same blob: the nonce is new -> AUTH_FAILED.
+  // 2. A fresh session with the same blob: without the key the chunks are refused, the recorded
+  //    tag is no MODEL_AUTH tag for the new nonce, and the replayed commit finds no session.
   const auto ch = rig.session.model_begin(static_cast<uint16_t>(blob_a.size()), crc32(blob_a.data(), blob_a.size()));
   (void)ch;
-  for (size_t off = 0; off < blob_a.size(); off += 10)
-    rig.session.model_chunk(static_cast<uint16_t>(off),
-                            std::span<const uint8_t>(blob_a).subspan(off, std::min<size_t>(10, blob_a.size() - off)));
-  try {
-    rig.session.request(wire::MsgType::ModelCommit, captured, std::nullopt);
-    FAIL();
-  } catch (const NackError& e) {
-    EXPECT_EQ(e.code(), static_cast<uint8_t>(wire::Nack::AuthFailed));
-  }
+  auto expect_nack = [&](wire::MsgType type, std::span<const uint8_t> payload, wire::Nack code) {
+    try {
+      rig.session.request(type, payload, std::nullopt);
+      FAIL() << wire::msg_type_name(wire::type_code(type));
+    } catch (const NackError& e) {
+      EXPECT_EQ(e.code(), static_cast<uint8_t>(code)) << wire::msg_type_name(wire::type_code(type));
+    }
+  };
+  std::vector<uint8_t> chunk = {0, 0};
+  chunk.insert(chunk.end(), blob_a.begin(), blob_a.begin() + 10);
+  expect_nack(wire::MsgType::ModelChunk, chunk, wire::Nack::NoSession);
+  expect_nack(wire::MsgType::ModelAuth, captured, wire::Nack::AuthFailed);
+  expect_nack(wire::MsgType::ModelCommit, captured, wire::Nack::NoSession);
   EXPECT_EQ(rig.module.model_seq(), 1u);
   EXPECT_EQ(rig.module.commits_accepted(), 1u);
 }
@@ -145,9 +157,10 @@ TEST(FlashModel, LoadsBinJsonHexAndJsonPath) {
   EXPECT_EQ(load_model_blob(dir.path + "/m.bin"), blob);
   EXPECT_EQ(load_model_blob(dir.path + "/a.json"), blob);
   EXPECT_EQ(load_model_blob(dir.path + "/b.json"), blob);
-  EXPECT_THROW(load_model_blob(dir.path + "/c.json"), std::runtime_error);
-  EXPECT_THROW(load_model_blob(dir.path + "/d.json"), std::runtime_error);
-  EXPECT_THROW(load_model_blob(dir.path + "/missing.bin"), std::runtime_error);
+  // Bad input is an io::InputError, a std::invalid_argument: the CLI's exit code 2.
+  EXPECT_THROW(load_model_blob(dir.path + "/c.json"), std::invalid_argument);
+  EXPECT_THROW(load_model_blob(dir.path + "/d.json"), std::invalid_argument);
+  EXPECT_THROW(load_model_blob(dir.path + "/missing.bin"), std::invalid_argument);
   EXPECT_EQ(check_model_blob(blob), "");
   EXPECT_NE(check_model_blob(std::span<const uint8_t>(blob).first(100)), "");
 }
@@ -160,4 +173,51 @@ TEST(FlashModel, BusyAnswersAreRetriedNotFatal) {
   EXPECT_TRUE(flash_model(rig.session, blob, test::fake_module_key()).verified);
   EXPECT_GT(rig.session.busy_answers(), 0u);
   EXPECT_EQ(rig.module.active_model(), blob);
+}
+
+TEST(FlashModel, FirmwareWithoutModelAuthIsNamedAndGetsNoChunk) {
+  FakeModuleOptions o;
+  o.legacy_upload = true;
+  Rig rig(o);
+  try {
+    flash_model(rig.session, test::make_test_blob(1), test::fake_module_key());
+    FAIL() << "an older firmware must be refused";
+  } catch (const LinkError& e) {
+    EXPECT_EQ(e.kind(), LinkErrorKind::kUnsupported);
+    const std::string m = e.what();
+    EXPECT_NE(m.find("MODEL_AUTH"), std::string::npos) << m;
+    EXPECT_NE(m.find("flash-firmware"), std::string::npos) << m;
+  }
+  EXPECT_EQ(rig.module.staged_bytes(), 0u);
+  EXPECT_TRUE(rig.module.active_model().empty());
+}
+
+// The link dies at the commit: the error says what is known (acknowledged or not), that the
+// outcome is otherwise unknown, and which INFO values show the new model.
+TEST(FlashModel, LinkLostAtTheCommitSaysWhatIsKnownAndHowToCheck) {
+  using HangUp = FakeModuleOptions::HangUp;
+  for (const HangUp h : {HangUp::kBeforeCommitAck, HangUp::kAfterCommitAck}) {
+    SCOPED_TRACE(h == HangUp::kBeforeCommitAck ? "before the commit ACK" : "after the commit ACK");
+    FakeModuleOptions o;
+    o.hang_up = h;
+    Rig rig(o);
+    const auto blob = test::make_test_blob(4);
+    const std::string crc = fmt::format("{:08x}", blob_stored_crc(blob.data()));
+    try {
+      flash_model(rig.session, blob, test::fake_module_key());
+      FAIL() << "the link was lost";
+    } catch (const NackError& e) {
+      FAIL() << "a NACK instead of the lost link: " << e.what();
+    } catch (const LinkError& e) {
+      const std::string m = e.what();
+      EXPECT_NE(e.kind(), LinkErrorKind::kProtocol) << m;  // still "link lost" for the exit code
+      EXPECT_NE(m.find("btsm info"), std::string::npos) << m;
+      EXPECT_NE(m.find(crc), std::string::npos) << m;
+      if (h == HangUp::kBeforeCommitAck)
+        EXPECT_NE(m.find("unknown"), std::string::npos) << m;
+      else
+        EXPECT_NE(m.find("accepted the commit"), std::string::npos) << m;
+    }
+    EXPECT_EQ(rig.module.model_seq(), 1u);  // the module did take the model both times
+  }
 }

@@ -1,0 +1,72 @@
+#include "host/link/model_blob_file.hpp"
+
+#include "common/reduced_model.hpp"
+#include "host/io/hex.hpp"
+#include "host/io/input_error.hpp"
+#include "host/io/input_file.hpp"
+#include "host/io/json_input.hpp"
+
+#include <fmt/format.h>
+#include <nlohmann/json.hpp>
+
+#include <filesystem>
+
+namespace btsm::link {
+
+namespace {
+
+std::vector<uint8_t> bytes_of(const std::string& s) { return std::vector<uint8_t>(s.begin(), s.end()); }
+
+bool looks_like_json(std::string_view content, const std::string& path) {
+  if (std::filesystem::path(path).extension() == ".json") return true;
+  const auto first = content.find_first_not_of(" \t\r\n");
+  return first != std::string_view::npos && content[first] == '{';
+}
+
+}  // namespace
+
+std::vector<uint8_t> model_blob_from_content(std::string_view content, const std::string& path,
+                                             const std::function<std::vector<uint8_t>(const std::string&)>& read_blob_file) {
+  if (!looks_like_json(content, path)) return std::vector<uint8_t>(content.begin(), content.end());
+  const nlohmann::json j = io::parse_json_text(content, path);
+  // The blob may sit at the top level or inside a "blob" / "model" object.
+  const nlohmann::json* node = &j;
+  if (j.is_object())
+    for (const char* obj : {"blob", "model"})
+      if (j.contains(obj) && j[obj].is_object()) node = &j[obj];
+  if (node->is_object()) {
+    for (const char* key : {"blob_hex", "hex", "blob"})
+      if (node->contains(key) && (*node)[key].is_string())
+        return io::hex_to_bytes((*node)[key].get_ref<const std::string&>(), path + ": \"" + key + "\"");
+    for (const char* key : {"blob_file", "blob_path", "file", "path"}) {
+      if (node->contains(key) && (*node)[key].is_string()) {
+        std::filesystem::path p = (*node)[key].get<std::string>();
+        if (p.is_relative()) p = std::filesystem::path(path).parent_path() / p;
+        return read_blob_file(p.string());
+      }
+    }
+  }
+  throw io::InputError(path + ": this JSON holds no model blob (looked for \"blob_hex\" or \"blob_file\"): "
+                              "write the blob with `btsm reduce ... --blob model.bin` and flash model.bin");
+}
+
+std::vector<uint8_t> load_model_blob(const std::string& path) {
+  const std::string content = io::read_input_file(path, kMaxModelFileBytes, "model file", io::FileKind::Binary);
+  return model_blob_from_content(content, path, [](const std::string& blob_path) {
+    return bytes_of(io::read_input_file(blob_path, kMaxBlobFileBytes, "model blob", io::FileKind::Binary));
+  });
+}
+
+std::string check_model_blob(std::span<const uint8_t> blob) {
+  if (blob.size() != kReducedModelBlobSize)
+    return fmt::format("model blob is {} bytes, expected {}", blob.size(), kReducedModelBlobSize);
+  ReducedModel m;
+  const ModelCheck c = decode(blob.data(), blob.size(), m);
+  if (c.ok()) return {};
+  std::string where;
+  if (c.breakpoint != 0xFF) where = fmt::format(" (breakpoint {})", c.breakpoint);
+  else if (c.channel != 0xFF) where = fmt::format(" (channel {})", c.channel + 1);
+  return std::string(model_status_name(c.status)) + where;
+}
+
+}  // namespace btsm::link

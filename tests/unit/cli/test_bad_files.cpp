@@ -1,0 +1,154 @@
+// Bad files a user may hand the tool, each a row of the hardening issue: they fail with exit code
+// 2 (unreadable or unusable input) or 1 (the operation failed), fast, with a message naming what
+// and where, and no output file -- never a crash, a hang or a "converged" with rms inf.
+#include "cli_run.hpp"
+#include "model_fixture.hpp"
+
+#include <gtest/gtest.h>
+
+#include <chrono>
+#include <string>
+
+namespace btsm::test {
+namespace {
+
+bool mentions(const CliResult& r, const std::string& s) { return r.err.find(s) != std::string::npos; }
+
+// Row 1: a model whose heat sources are all 0 W used to crash `reduce` (SIGSEGV on an empty
+// matrix: every Hankel singular value 0). Now: exit 1, the reason, no output file.
+TEST(BadFiles, ReduceOfAModelWithoutHeatFailsWithTheReason) {
+  ScratchDir d;
+  write_text(d.file("zero.json"), spindle4_model_json([](nlohmann::json& p) {
+    for (const char* q : {"qf1", "qf2", "qf3", "qf4"}) p[q] = 0.0;
+  }));
+  const CliResult r = run_btsm(d, "reduce zero.json --speeds 4000,6000 --out r.json --blob m.bin");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(mentions(r, "Hankel singular value")) << r.err;
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+  EXPECT_FALSE(file_exists(d.file("m.bin")));
+}
+
+// Row 2: one cell of 1e300 rpm or 1e155 degC made the fit print "converged" with rms inf and
+// write a model with every heat source 0. The reader refuses values no spindle reaches, naming
+// file, line and column, before anything is fitted.
+TEST(BadFiles, RecordingValuesBeyondPhysicalBoundsAreRefusedWithTheirPlace) {
+  ScratchDir d;
+  struct Case {
+    int row, col;
+    const char* text;
+    const char* says;
+  } cases[] = {
+      {40, 1, "1e300", "rpm"},           // speed
+      {40, 3, "1e155", "degC"},          // temperature
+      {40, 4, "-300", "absolute zero"},  // below -273.15 degC
+      {40, 2, "1e200", "degC"},          // ambient
+  };
+  for (const auto& c : cases) {
+    write_text(d.file("rec.csv"), recording_csv(200, [&](int row, int col, const std::string& text) {
+                 return row == c.row && col == c.col ? std::string(c.text) : text;
+               }));
+    const CliResult r = run_btsm(d, "fit rec.csv --preset spindle4 --sum-c 20478.7 --out model.json");
+    EXPECT_EQ(r.code, 2) << c.text << "\n" << r.err;
+    // line = 2 header lines + row + 1, column 1-based
+    const std::string where = "rec.csv:" + std::to_string(c.row + 3) + ":" + std::to_string(c.col + 1);
+    EXPECT_TRUE(mentions(r, where)) << where << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, c.says)) << r.err;
+    EXPECT_FALSE(file_exists(d.file("model.json"))) << c.text;
+  }
+}
+
+// Row 3: /dev/zero as any input file never returned (memory grew by 1.6 GB in 10 s). Every reader
+// reads through a size cap and refuses a text file's first NUL byte.
+TEST(BadFiles, DevZeroFailsFastAsEveryInput) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(50));
+  const char* commands[] = {
+      "fit /dev/zero --preset spindle4 --out m.json",
+      "fit rec.csv --network /dev/zero --out m.json",
+      "validate /dev/zero rec.csv",
+      "validate model.json /dev/zero",
+      "reduce /dev/zero --speeds 6000 --out r.json",
+      "heat /dev/zero rec.csv --out heat",
+      "flash-model /dev/zero --port /dev/null",
+      "flash-firmware --device-id 0000de71 --new-key --hex /dev/zero --dry-run --out fw.hex",
+  };
+  for (const char* c : commands) {
+    const auto t0 = std::chrono::steady_clock::now();
+    const CliResult r = run_btsm(d, c, 20);
+    const double s = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+    EXPECT_EQ(r.code, 2) << c << "\n" << r.err;
+    EXPECT_LT(s, 10.0) << c;
+    EXPECT_TRUE(mentions(r, "/dev/zero")) << c << "\n" << r.err;
+  }
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+  EXPECT_FALSE(file_exists(d.file("fw.hex")));
+}
+
+// Row 4: a network of ~70,000 nested '[' crashed `fit` (stack overflow building the error).
+// JSON nested deeper than 64 levels is refused before a value is built, in every JSON reader.
+TEST(BadFiles, DeeplyNestedJsonIsRefusedNotACrash) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(50));
+  const std::string deep = std::string(70000, '[') + std::string(70000, ']');
+  write_text(d.file("deep.json"), deep);
+  write_text(d.file("deep_open.json"), std::string(70000, '['));
+  write_text(d.file("deep_field.json"), "{\"name\": " + deep + "}");
+  for (const char* f : {"deep.json", "deep_open.json", "deep_field.json"}) {
+    for (const std::string c : {std::string("fit rec.csv --out m.json --network ") + f, std::string("validate ") + f + " rec.csv",
+                                std::string("reduce ") + f + " --speeds 6000 --out r.json",
+                                std::string("flash-model ") + f + " --port /dev/null"}) {
+      const CliResult r = run_btsm(d, c);
+      EXPECT_EQ(r.code, 2) << c << "\n" << r.err;
+      EXPECT_TRUE(mentions(r, "nested deeper than 64")) << c << "\n" << r.err;
+    }
+  }
+}
+
+// Row 7: negative resistances passed `validate` (exit 0) and `reduce` made a blob with a 105-day
+// time constant. Every model is checked on load against the network's bounds and for stability.
+TEST(BadFiles, ModelValuesOutsideTheNetworkBoundsAreRefusedOnLoad) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  write_text(d.file("neg.json"), spindle4_model_json([](nlohmann::json& p) {
+    p["R12"] = -0.5;
+    p["Ra1"] = -3.0;
+  }));
+  write_text(d.file("huge.json"), spindle4_model_json([](nlohmann::json& p) { p["C1"] = 1e12; }));
+  for (const char* m : {"neg.json", "huge.json"}) {
+    for (const std::string c : {std::string("validate ") + m + " rec.csv", std::string("reduce ") + m + " --speeds 6000 --out r.json --blob m.bin",
+                                std::string("heat ") + m + " rec.csv --out heat"}) {
+      const CliResult r = run_btsm(d, c);
+      EXPECT_EQ(r.code, 2) << c << "\n" << r.err;
+      EXPECT_TRUE(mentions(r, "outside the network's bounds")) << c << "\n" << r.err;
+    }
+  }
+  EXPECT_TRUE(mentions(run_btsm(d, "validate neg.json rec.csv"), "'R12' = -0.5"));
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+  EXPECT_FALSE(file_exists(d.file("m.bin")));
+  // The preset's own values pass.
+  write_text(d.file("good.json"), spindle4_model_json());
+  const CliResult ok = run_btsm(d, "validate good.json rec.csv");
+  EXPECT_EQ(ok.code, 0) << ok.err;
+}
+
+// Row 9: `validate` on a recording of one row, or with every temperature empty, printed nan and
+// exited 0. Nothing to validate against is bad input.
+TEST(BadFiles, ValidateWithNothingToCompareIsRefused) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("one_row.csv"), recording_csv(1));
+  write_text(d.file("empty_temps.csv"), recording_csv(100, [](int, int col, const std::string& text) {
+               return col >= 3 ? std::string() : text;
+             }));
+  for (const char* f : {"one_row.csv", "empty_temps.csv"}) {
+    const CliResult r = run_btsm(d, std::string("validate model.json ") + f + " --json");
+    EXPECT_EQ(r.code, 2) << f << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, f)) << r.err;
+    EXPECT_EQ(r.out.find("nan"), std::string::npos) << r.out;
+  }
+}
+
+}  // namespace
+}  // namespace btsm::test

@@ -1,0 +1,67 @@
+// README's exit codes: 0 ok, 1 the operation ran and failed, 2 bad arguments or unreadable input,
+// 3 no device / link lost. The argument parser's own codes (105 missing required option, 106
+// file does not exist, 114 value out of range, ...) used to leak through; every floating-point
+// option refuses nan and inf; nothing is written before the inputs are checked.
+#include "cli_run.hpp"
+#include "model_fixture.hpp"
+
+#include <gtest/gtest.h>
+
+namespace btsm::test {
+namespace {
+
+TEST(CliExitCodes, ParserErrorsAreTwo) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  struct Case {
+    const char* what;
+    std::string args;
+  } cases[] = {
+      {"missing input file", "fit missing.csv --preset spindle4 --out m.json"},
+      {"missing required option", "fit --preset spindle4"},
+      {"value out of range", "reduce model.json --speeds 6000 --out r.json --dt 100"},
+      {"option without a value", "reduce model.json --speeds 6000 --out r.json --dt"},
+      {"unknown option", "reduce model.json --speeds 6000 --out r.json --no-such-option"},
+      {"no command", ""},
+      {"unknown command", "no-such-command"},
+      {"not a number", "reduce model.json --speeds 6000 --out r.json --dt fast"},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = run_btsm(d, c.args);
+    EXPECT_EQ(r.code, 2) << c.what << ": btsm " << c.args << "\n" << r.err;
+    EXPECT_FALSE(r.err.empty()) << c.what;
+  }
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+  EXPECT_EQ(run_btsm(d, "--help").code, 0);
+  EXPECT_EQ(run_btsm(d, "--version").code, 0);
+  EXPECT_EQ(run_btsm(d, "reduce --help").code, 0);
+}
+
+// `--dt nan` passed the range check (every comparison with NaN is false), wrote reduced.json and
+// then failed; now every FLOAT option of every command refuses nan and inf up front.
+TEST(CliExitCodes, NonFiniteNumbersAreRefusedBeforeAnythingIsWritten) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  for (const char* bad : {"nan", "NaN", "inf", "-inf", "1e999"}) {
+    const CliResult r = run_btsm(d, std::string("reduce model.json --speeds 6000 --out r.json --blob m.bin --dt ") + bad);
+    EXPECT_EQ(r.code, 2) << bad << "\n" << r.err;
+    EXPECT_NE(r.err.find("--dt"), std::string::npos) << r.err;  // inf may meet the range check first
+    EXPECT_FALSE(file_exists(d.file("r.json"))) << bad;
+    EXPECT_FALSE(file_exists(d.file("m.bin"))) << bad;
+  }
+  const CliResult warn = run_btsm(d, "reduce model.json --speeds 6000 --out r.json --warn nan");
+  EXPECT_EQ(warn.code, 2);
+  EXPECT_NE(warn.err.find("'nan' is not a finite number"), std::string::npos) << warn.err;
+  EXPECT_EQ(run_btsm(d, "fit x.csv --preset spindle4 --out m.json --sum-c inf").code, 2);
+  EXPECT_EQ(run_btsm(d, "rtd r2t nan").code, 2);
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+  // The same command with a finite period works.
+  const CliResult ok = run_btsm(d, "reduce model.json --speeds 6000 --out r.json --blob m.bin --dt 5");
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  EXPECT_TRUE(file_exists(d.file("r.json")));
+  EXPECT_TRUE(file_exists(d.file("m.bin")));
+}
+
+}  // namespace
+}  // namespace btsm::test
