@@ -73,11 +73,14 @@ void register_flash_model(CLI::App& app) {
       "FILE is the blob written by `btsm reduce --blob model.bin`, or a JSON holding it as \"blob_hex\"\n"
       "(or naming it with \"blob_file\"). The blob is validated first (size 464, CRC, version, poles,\n"
       "gains). The upload: GET_INFO (device id) -> MODEL_BEGIN -> AUTH_CHALLENGE (single-use nonce) ->\n"
-      "chunks that each fit one 20-byte BLE write, each acknowledged -> MODEL_COMMIT with\n"
-      "HMAC-SHA256(device key, nonce || blob) -> MODEL_READ of the whole blob and CRC compare -> INFO\n"
-      "shows the new CRC and sequence. The key comes from the key store (`btsm keys path`) for the\n"
-      "module's device id. The module keeps its previous model unless the commit is accepted; a\n"
-      "refusal prints the module's reason (AUTH_FAILED = wrong key, BLOB_INVALID, ...).");
+      "MODEL_AUTH with HMAC-SHA256(device key, nonce || 0x4A || length || CRC-32): the module writes\n"
+      "nothing before this proof of the key -> chunks that each fit one 20-byte BLE write, each\n"
+      "acknowledged -> MODEL_COMMIT with HMAC-SHA256(device key, nonce || blob) -> MODEL_READ of the\n"
+      "whole blob and CRC compare -> INFO shows the new CRC and sequence. The key comes from the key\n"
+      "store (`btsm keys path`) for the module's device id. The module keeps its previous model unless\n"
+      "the commit is accepted; a refusal prints the module's reason (AUTH_FAILED = wrong key,\n"
+      "BLOB_INVALID, ...). A link lost after MODEL_COMMIT was sent exits 3 and says what `btsm info`\n"
+      "shows if the new model is active. Bad input (not a blob, not hex, a bad key file) exits 2.");
   add_link_options(*c, a->link);
   c->add_option("file", a->file, "model blob (.bin) or JSON with the blob")->required()->check(CLI::ExistingFile);
   c->add_option("--key-file", a->key_file, "use this key file instead of the key store (must be mode 0600)");

@@ -75,6 +75,8 @@ void run_fit(const FitArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw CommandError(kExitUsage, e.what());
   }
+  if (!fit.unusable.empty())
+    throw CommandError(kExitFailure, "the fit gave no usable model, none written: " + fit.unusable);
   const json model = model_to_json(net, fit, recs);
   save_json(a.out, model);
   std::cerr << fmt::format("fit: {} ({}), rms {:.5f} K over {} residuals, {:.2f} s; wrote {}\n",

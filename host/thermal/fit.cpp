@@ -9,6 +9,7 @@
 #include "fit_starts.hpp"
 #include "fit_support.hpp"
 #include "fit_uncertainty.hpp"
+#include "model_file.hpp"
 #include "simulator.hpp"
 
 #include <algorithm>
@@ -49,6 +50,8 @@ class FitPipeline {
     for (int i = 0; i < np(); ++i)
       if (!std::isfinite(p_[i])) throw std::invalid_argument("fit: no start value for '" + param(i).name + "'");
     stage4_joint_output_error();
+    res_.unusable = fit_result_problem(net_, res_);
+    if (!res_.unusable.empty()) say("the result is no usable model: " + res_.unusable);
     return std::move(res_);
   }
 
@@ -448,6 +451,25 @@ Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& 
 
 FitResult fit_network(const Network& net, const std::vector<Recording>& recs, const FitOptions& opts) {
   return FitPipeline(net, recs, opts).run();
+}
+
+std::string fit_result_problem(const Network& net, const FitResult& fit) {
+  if (!std::isfinite(fit.rms_K)) return "the final cost is not finite (rms " + std::to_string(fit.rms_K) + " K)";
+  const std::string values = model_problems(net, fit.params);
+  if (!values.empty()) return values;
+  // Degenerate: the fit was free to heat (a source parameter not fixed by the network) and no
+  // source delivers heat in either mode, at the reference speed or at rest. Sources the network
+  // holds at 0 W are a choice (a passive network for `btsm heat`), not a failure.
+  bool free_source = false;
+  for (const Source& src : net.sources)
+    for (const auto* terms : {&src.operating, &src.cooling})
+      for (const Term& t : *terms) free_source = free_source || !net.params[static_cast<std::size_t>(t.param)].fixed;
+  if (!free_source) return {};
+  const double operating = net.mode_at(net.speed_ref_rpm) == Mode::Operating ? net.speed_ref_rpm : 2 * net.operating_above_rpm;
+  for (const double speed : {operating, 0.0})
+    if (assemble(net, fit.params, speed).source_w.cwiseAbs().maxCoeff() > 0) return {};
+  return "degenerate: every heat source is 0 W, the model predicts that nothing heats (do the recordings' temperatures "
+         "rise with the speed?)";
 }
 
 }  // namespace btsm::thermal

@@ -109,6 +109,9 @@ struct FitResult {
   double condition_number = 0;                // of the scaled normal matrix (params + initial states)
   std::string gauge;                          // how the scale gauge was fixed
   bool converged = false;
+  // Why the result is no usable model, "" when it is (fit_result_problem); `btsm fit` then writes
+  // no model and exits 1 with this text.
+  std::string unusable;
   std::vector<StageSummary> stages;
   std::vector<std::string> warnings;
   double seconds = 0;
@@ -116,6 +119,12 @@ struct FitResult {
 
 // Throws std::invalid_argument on inconsistent input (missing measurement column, no gauge, ...).
 FitResult fit_network(const Network& net, const std::vector<Recording>& recs, const FitOptions& opts = {});
+
+// The final check of every fit: a non-finite cost, parameter values model_problems() refuses
+// (non-finite, outside their bounds, an unstable network), or a degenerate model -- one whose
+// heat sources the fit was free to set all came out 0 W: it predicts that nothing ever heats (and
+// leaves `reduce` nothing to reduce). Returns the reason, "" for a usable result.
+std::string fit_result_problem(const Network& net, const FitResult& fit);
 
 // Residuals (predicted - measured, rows x measurements, NaN = missing) for given parameters and
 // initial state; the building block of validation and residual analysis.

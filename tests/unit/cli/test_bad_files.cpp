@@ -57,6 +57,42 @@ TEST(BadFiles, RecordingValuesBeyondPhysicalBoundsAreRefusedWithTheirPlace) {
   }
 }
 
+// Row 2, the fit's own final check: a network free to heat (its source's power not fixed) fitted
+// to a recording in which nothing heats -- temperatures decay while the spindle runs -- ends with
+// every heat source at 0 W. Such a model predicts nothing and leaves reduce nothing to reduce:
+// exit 1 with the reason, no model written (the fit used to write it and exit 0).
+TEST(BadFiles, FitThatEndsDegenerateWritesNoModel) {
+  ScratchDir d;
+  write_text(d.file("net.json"), R"({"name": "two nodes", "speed_ref_rpm": 5000, "sum_capacitance_J_per_K": 3000,
+    "parameters": [{"name": "C1", "unit": "J/K", "min": 1, "max": 1e6}, {"name": "C2", "unit": "J/K", "min": 1, "max": 1e6},
+      {"name": "Ra", "unit": "K/W", "min": 1e-3, "max": 1e3}, {"name": "Rab", "unit": "K/W", "min": 1e-3, "max": 1e3},
+      {"name": "Rb", "unit": "K/W", "min": 1e-3, "max": 1e3}, {"name": "q", "unit": "W", "min": 0, "max": 100, "log": false}],
+    "nodes": [{"name": "a", "capacitance": "C1"}, {"name": "b", "capacitance": "C2"}],
+    "links": [{"name": "a0", "between": ["a", "ambient"], "both": [{"resistance": "Ra"}]},
+              {"name": "ab", "between": ["a", "b"], "both": [{"resistance": "Rab"}]},
+              {"name": "b0", "between": ["b", "ambient"], "both": [{"resistance": "Rb"}]}],
+    "sources": [{"name": "heat", "node": "a", "operating": [{"power": "q", "speed_exponent": 1}]}],
+    "measurements": [{"column": "T1", "node": "a"}, {"column": "T2", "node": "b"}]})");
+  // C1 1000 J/K, C2 2000 J/K, Ra 2, Rab 1, Rb 4 K/W; 20 / 15 K above ambient, no heat at all.
+  std::string rec = "time_s,speed_rpm,ambient_c,T1,T2\n";
+  double x1 = 20, x2 = 15;
+  for (int k = 0; k < 1500; ++k) {
+    char line[96];
+    std::snprintf(line, sizeof line, "%d,%d,20.000,%.4f,%.4f\n", 10 * k, k < 750 ? 6000 : 0, 20 + x1, 20 + x2);
+    rec += line;
+    for (int i = 0; i < 20; ++i) {  // Euler, 0.5 s steps
+      const double d1 = (-x1 / 2.0 - (x1 - x2) / 1.0) / 1000.0, d2 = (-(x2 - x1) / 1.0 - x2 / 4.0) / 2000.0;
+      x1 += 0.5 * d1;
+      x2 += 0.5 * d2;
+    }
+  }
+  write_text(d.file("decay.csv"), rec);
+  const CliResult r = run_btsm(d, "fit decay.csv --network net.json --out model.json", 300);
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(mentions(r, "degenerate: every heat source is 0 W")) << r.err;
+  EXPECT_FALSE(file_exists(d.file("model.json")));
+}
+
 // Row 3: /dev/zero as any input file never returned (memory grew by 1.6 GB in 10 s). Every reader
 // reads through a size cap and refuses a text file's first NUL byte.
 TEST(BadFiles, DevZeroFailsFastAsEveryInput) {
