@@ -467,7 +467,7 @@ std::string fit_result_problem(const Network& net, const FitResult& fit) {
   if (!free_source) return {};
   const double operating = net.mode_at(net.speed_ref_rpm) == Mode::Operating ? net.speed_ref_rpm : 2 * net.operating_above_rpm;
   for (const double speed : {operating, 0.0})
-    if (assemble(net, fit.params, speed).source_w.cwiseAbs().maxCoeff() > 0) return {};
+    if (assemble(net, fit.params, speed, ~0u).source_w.cwiseAbs().maxCoeff() > 0) return {};  // any event state
   return "degenerate: every heat source is 0 W, the model predicts that nothing heats (do the recordings' temperatures "
          "rise with the speed?)";
 }

@@ -22,9 +22,11 @@ std::string value_text(double v) {
 }
 
 // The smallest eigenvalue of the conductance matrix relative to its largest: > 0 when every node
-// has a path of positive conductances to ambient (then A = -C^-1 G has only negative poles).
+// has a path of positive conductances to ambient or a boundary (then A = -C^-1 G has only negative
+// poles). Checked with every declared event present: a link an event switches on counts, so a
+// network is refused only when no event state can make it stable.
 bool conductances_stable(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
-  const NodeMatrices m = assemble(net, params, speed_rpm);
+  const NodeMatrices m = assemble(net, params, speed_rpm, ~0u);
   if (!m.G.allFinite()) return false;
   const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(m.G, Eigen::EigenvaluesOnly);
   if (es.info() != Eigen::Success) return false;
