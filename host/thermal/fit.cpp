@@ -463,7 +463,8 @@ std::string fit_result_problem(const Network& net, const FitResult& fit) {
   bool free_source = false;
   for (const Source& src : net.sources)
     for (const auto* terms : {&src.operating, &src.cooling})
-      for (const Term& t : *terms) free_source = free_source || !net.params[static_cast<std::size_t>(t.param)].fixed;
+      for (const Term& t : *terms)  // fixed heat; a driven term heats nothing from rest
+        free_source = free_source || (!t.driven && !net.params[static_cast<std::size_t>(t.param)].fixed);
   if (!free_source) return {};
   const double operating = net.mode_at(net.speed_ref_rpm) == Mode::Operating ? net.speed_ref_rpm : 2 * net.operating_above_rpm;
   for (const double speed : {operating, 0.0})

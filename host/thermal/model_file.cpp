@@ -21,17 +21,19 @@ std::string value_text(double v) {
   return buf;
 }
 
-// The smallest eigenvalue of the conductance matrix relative to its largest: > 0 when every node
-// has a path of positive conductances to ambient or a boundary (then A = -C^-1 G has only negative
-// poles). Checked with every declared event present: a link an event switches on counts, so a
-// network is refused only when no event state can make it stable.
-bool conductances_stable(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
+// The poles of A = -C^-1 G all in the left half plane: with a symmetric G (a passive network)
+// exactly when every node has a path of positive conductances to ambient or a boundary; a source
+// driven by a temperature difference makes G non-symmetric and may also push a pole across, hence
+// the general eigenvalues. Checked with every declared event present (a link an event switches on
+// counts), so a network is refused only when no event state can make it stable.
+bool stable(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
   const NodeMatrices m = assemble(net, params, speed_rpm, ~0u);
-  if (!m.G.allFinite()) return false;
-  const Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> es(m.G, Eigen::EigenvaluesOnly);
+  const Eigen::MatrixXd CiG = m.capacitance.cwiseInverse().asDiagonal() * m.G;
+  if (!CiG.allFinite()) return false;
+  const Eigen::EigenSolver<Eigen::MatrixXd> es(CiG, false);
   if (es.info() != Eigen::Success) return false;
-  const Eigen::VectorXd& ev = es.eigenvalues();  // ascending
-  return ev[0] > 1e-12 * std::max(std::abs(ev[ev.size() - 1]), 1e-300);
+  const Eigen::VectorXcd ev = es.eigenvalues();
+  return ev.real().minCoeff() > 1e-12 * std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
 }
 
 }  // namespace
@@ -58,8 +60,9 @@ std::string model_problems(const Network& net, const Eigen::VectorXd& params) {
   if (!out.empty()) return out;
   const double operating = net.mode_at(net.speed_ref_rpm) == Mode::Operating ? net.speed_ref_rpm : 2 * net.operating_above_rpm;
   for (const double s : {0.0, operating})
-    if (!conductances_stable(net, params, s))
-      add(std::string("not stable in ") + mode_name(net.mode_at(s)) + " mode (a node without a path of positive conductances to ambient)");
+    if (!stable(net, params, s))
+      add(std::string("not stable in ") + mode_name(net.mode_at(s)) +
+          " mode (a node without a path of positive conductances to ambient, or heat that grows with temperature faster than it flows away)");
   return out;
 }
 

@@ -28,8 +28,8 @@ nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std
 
 // What makes parameter values unusable as a model of `net`, "" when none: a value that is not
 // finite or outside its parameter's [min, max], a capacitance <= 0, or a network that is not
-// stable (checked at 0 rpm and in the operating mode: every node needs a path of positive
-// conductances to ambient).
+// stable at 0 rpm or in the operating mode (a pole of -C^-1 G with a real part >= 0: a node
+// without a path of positive conductances to ambient, or driven heat that outgrows its outflow).
 std::string model_problems(const Network& net, const Eigen::VectorXd& params);
 
 // Reads a model; every model passes model_problems() on load, so validate, reduce, heat and
