@@ -36,7 +36,7 @@ void authenticate_upload(Session& session, const DeviceKey& key, const AuthChall
     session.request(MsgType::ModelAuth, std::span<const uint8_t>(p, len), std::nullopt, &attempts);
   } catch (const NackError& e) {
     if (e.code() == static_cast<uint8_t>(Nack::UnknownType))
-      throw LinkError(LinkErrorKind::kUnsupported,
+      throw LinkError(LinkErrorKind::kProtocol,  // the operation failed (exit 1), the device is there
                       fmt::format("the module (firmware {}.{}.{}) does not know MODEL_AUTH: that firmware writes model "
                                   "chunks before it checks the key. Update it (`btsm flash-firmware`), then flash the "
                                   "model again; nothing was written",

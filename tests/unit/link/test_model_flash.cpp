@@ -183,7 +183,7 @@ TEST(FlashModel, FirmwareWithoutModelAuthIsNamedAndGetsNoChunk) {
     flash_model(rig.session, test::make_test_blob(1), test::fake_module_key());
     FAIL() << "an older firmware must be refused";
   } catch (const LinkError& e) {
-    EXPECT_EQ(e.kind(), LinkErrorKind::kUnsupported);
+    EXPECT_EQ(e.kind(), LinkErrorKind::kProtocol);
     const std::string m = e.what();
     EXPECT_NE(m.find("MODEL_AUTH"), std::string::npos) << m;
     EXPECT_NE(m.find("flash-firmware"), std::string::npos) << m;
