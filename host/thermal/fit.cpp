@@ -12,8 +12,11 @@
 #include "model_file.hpp"
 #include "simulator.hpp"
 
+#include <Eigen/LU>
+
 #include <algorithm>
 #include <cmath>
+#include <cstdio>
 #include <exception>
 #include <stdexcept>
 #include <thread>
@@ -453,6 +456,14 @@ FitResult fit_network(const Network& net, const std::vector<Recording>& recs, co
   return FitPipeline(net, recs, opts).run();
 }
 
+namespace {
+std::string fmt_g(double v) {
+  char buf[32];
+  std::snprintf(buf, sizeof buf, "%.3g", v);
+  return buf;
+}
+}  // namespace
+
 std::string fit_result_problem(const Network& net, const FitResult& fit) {
   if (!std::isfinite(fit.rms_K)) return "the final cost is not finite (rms " + std::to_string(fit.rms_K) + " K)";
   const std::string values = model_problems(net, fit.params);
@@ -466,11 +477,21 @@ std::string fit_result_problem(const Network& net, const FitResult& fit) {
       for (const Term& t : *terms)  // fixed heat; a driven term heats nothing from rest
         free_source = free_source || (!t.driven && !net.params[static_cast<std::size_t>(t.param)].fixed);
   if (!free_source) return {};
+  // "No heat" is judged by its effect, not by an exact 0 W: the steady rise the sources hold above
+  // ambient (G dT = heat, every event present), at the reference speed and at rest. A fit that
+  // ends with, say, 3e-6 W at its lower bound is as empty as one at 0 W; a rise no larger than the
+  // fit's own rms residual is heat the data cannot tell from none.
   const double operating = net.mode_at(net.speed_ref_rpm) == Mode::Operating ? net.speed_ref_rpm : 2 * net.operating_above_rpm;
-  for (const double speed : {operating, 0.0})
-    if (assemble(net, fit.params, speed, ~0u).source_w.cwiseAbs().maxCoeff() > 0) return {};  // any event state
-  return "degenerate: every heat source is 0 W, the model predicts that nothing heats (do the recordings' temperatures "
-         "rise with the speed?)";
+  double max_rise_K = 0;
+  for (const double speed : {operating, 0.0}) {
+    const NodeMatrices m = assemble(net, fit.params, speed, ~0u);
+    const Eigen::VectorXd rise = m.G.fullPivLu().solve(m.heat_w);  // G is stable: checked above
+    max_rise_K = std::max(max_rise_K, rise.cwiseAbs().maxCoeff());
+  }
+  if (max_rise_K > fit.rms_K) return {};
+  return "degenerate: every heat source is (near) 0 W, the model predicts that nothing heats (steady rise at most " +
+         fmt_g(max_rise_K) + " K, not above the fit's rms residual " + fmt_g(fit.rms_K) +
+         " K; do the recordings' temperatures rise with the speed?)";
 }
 
 }  // namespace btsm::thermal

@@ -121,9 +121,10 @@ struct FitResult {
 FitResult fit_network(const Network& net, const std::vector<Recording>& recs, const FitOptions& opts = {});
 
 // The final check of every fit: a non-finite cost, parameter values model_problems() refuses
-// (non-finite, outside their bounds, an unstable network), or a degenerate model -- one whose
-// heat sources the fit was free to set all came out 0 W: it predicts that nothing ever heats (and
-// leaves `reduce` nothing to reduce). Returns the reason, "" for a usable result.
+// (non-finite, outside their bounds, an unstable network), or a degenerate model -- heat sources
+// the fit was free to set all came out (near) 0 W, their steady rise above ambient no larger than
+// the fit's rms residual: it predicts that nothing ever heats (and leaves `reduce` nothing to
+// reduce). Returns the reason, "" for a usable result.
 std::string fit_result_problem(const Network& net, const FitResult& fit);
 
 // Residuals (predicted - measured, rows x measurements, NaN = missing) for given parameters and

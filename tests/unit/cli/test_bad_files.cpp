@@ -89,7 +89,7 @@ TEST(BadFiles, FitThatEndsDegenerateWritesNoModel) {
   write_text(d.file("decay.csv"), rec);
   const CliResult r = run_btsm(d, "fit decay.csv --network net.json --out model.json", 300);
   EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_TRUE(mentions(r, "degenerate: every heat source is 0 W")) << r.err;
+  EXPECT_TRUE(mentions(r, "degenerate: every heat source is (near) 0 W")) << r.err;
   EXPECT_FALSE(file_exists(d.file("model.json")));
 }
 
@@ -132,7 +132,7 @@ TEST(BadFiles, DeeplyNestedJsonIsRefusedNotACrash) {
   write_text(d.file("deep_open.json"), std::string(70000, '['));
   write_text(d.file("deep_field.json"), "{\"name\": " + deep + "}");
   for (const char* f : {"deep.json", "deep_open.json", "deep_field.json"}) {
-    for (const std::string c : {std::string("fit rec.csv --out m.json --network ") + f, std::string("validate ") + f + " rec.csv",
+    for (const std::string& c : {std::string("fit rec.csv --out m.json --network ") + f, std::string("validate ") + f + " rec.csv",
                                 std::string("reduce ") + f + " --speeds 6000 --out r.json",
                                 std::string("flash-model ") + f + " --port /dev/null"}) {
       const CliResult r = run_btsm(d, c);
@@ -153,7 +153,7 @@ TEST(BadFiles, ModelValuesOutsideTheNetworkBoundsAreRefusedOnLoad) {
   }));
   write_text(d.file("huge.json"), spindle4_model_json([](nlohmann::json& p) { p["C1"] = 1e12; }));
   for (const char* m : {"neg.json", "huge.json"}) {
-    for (const std::string c : {std::string("validate ") + m + " rec.csv", std::string("reduce ") + m + " --speeds 6000 --out r.json --blob m.bin",
+    for (const std::string& c : {std::string("validate ") + m + " rec.csv", std::string("reduce ") + m + " --speeds 6000 --out r.json --blob m.bin",
                                 std::string("heat ") + m + " rec.csv --out heat"}) {
       const CliResult r = run_btsm(d, c);
       EXPECT_EQ(r.code, 2) << c << "\n" << r.err;

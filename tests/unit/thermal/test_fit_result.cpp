@@ -1,5 +1,5 @@
 // The final check of every fit (fit_result_problem): a result with a non-finite cost, values the
-// network forbids or heat sources the fit drove all to 0 W is no usable model -- what `btsm fit`
+// network forbids or heat sources the fit drove all to (near) 0 W is no usable model -- what `btsm fit`
 // printed as "converged" with rms inf before.
 #include "host/thermal/fit.hpp"
 
@@ -36,6 +36,12 @@ TEST(FitResultProblem, UsableNonFiniteOutOfBoundsAndDegenerate) {
   EXPECT_NE(fit_result_problem(net, r).find("degenerate"), std::string::npos);
   // One source left heating is a model.
   r.params[net.param_index("qf2")] = 1.0;
+  EXPECT_EQ(fit_result_problem(net, r), "");
+  // Sources a hair above 0 W (where a fit stops at the lower bound) heat no more than the misfit:
+  // still degenerate. Judged by the steady rise against the rms residual, not by the watts.
+  for (const char* q : {"qf1", "qf2", "qf3", "qf4"}) r.params[net.param_index(q)] = 1e-6;
+  EXPECT_NE(fit_result_problem(net, r).find("degenerate"), std::string::npos);
+  r.rms_K = 0;  // a perfect fit: any heat at all is resolved
   EXPECT_EQ(fit_result_problem(net, r), "");
 }
 
