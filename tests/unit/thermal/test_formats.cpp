@@ -12,10 +12,11 @@
 namespace btsm::thermal {
 namespace {
 
+// A reader's refusal is bad input (io::InputError, a std::invalid_argument: exit 2 in the CLI).
 std::string error_of(const std::string& csv) {
   try {
     parse_recording_csv(csv, "rec.csv");
-  } catch (const std::runtime_error& e) {
+  } catch (const std::invalid_argument& e) {
     return e.what();
   }
   return "";
