@@ -383,6 +383,35 @@ TEST(LinkCli, MonitorSaysWhenTheStreamGoesSilentAndWhenItIsBack) {
   EXPECT_EQ(r.code, 0) << r.err;
 }
 
+// A link that stays lost past --reconnect ends `record` with exit 3; the rows written stay and the
+// closing summary lines follow them, with the reason. The README's `record` section said the
+// summary was missing after a link loss; it must say what the file holds.
+TEST(LinkCli, RecordLinkLostKeepsRowsAndSummaryAsTheReadmeSays) {
+  test::TempDir home;
+  test::FakeModuleOptions o;
+  o.sample_period = std::chrono::milliseconds(20);
+  ModuleOnPty m(o);
+  const std::string csv = home.path + "/rec.csv";
+  Background rec(home, "record --port " + m.pty.path + " --out " + csv + " --timeout 0.5 --reconnect 1");
+  ASSERT_GT(rec.seconds_until("record: module", 10), -1) << rec.err();
+  ASSERT_TRUE(wait_for_samples(m.module, m.module.samples_sent() + 20, 5));
+  m.module.replace_fd(-1);  // the module's end of the link closes and stays closed
+  const Result r = rec.finish();
+  EXPECT_EQ(r.code, 3) << r.err;
+  const thermal::Recording file = thermal::read_recording_csv(csv);
+  EXPECT_GE(file.rows(), 10u);
+  EXPECT_EQ(file.meta_value("stop_reason").rfind("link lost: ", 0), 0u) << file.meta_value("stop_reason");
+  EXPECT_EQ(file.meta_value("samples"), std::to_string(file.rows()));
+  EXPECT_FALSE(file.meta_value("lost_samples").empty());
+  const std::string readme = slurp(BTSM_README);
+  const size_t from = readme.find("\n### Record\n");
+  ASSERT_NE(from, std::string::npos);
+  const std::string section = readme.substr(from, readme.find("\n### ", from + 1) - from);
+  EXPECT_EQ(section.find("without the closing summary"), std::string::npos) << section;
+  EXPECT_NE(section.find("followed by the closing summary lines"), std::string::npos) << section;
+  EXPECT_NE(section.find("`# stop_reason: link lost: …`"), std::string::npos) << section;
+}
+
 TEST(LinkCli, GetConfigReadsWhatSetConfigWroteOnTheSimulatedModule) {
   test::TempDir home;
   sim::SimModuleOptions o;
