@@ -21,6 +21,10 @@ std::string value_text(double v) {
   return buf;
 }
 
+// A fit that stops at a bound of a log-scaled parameter returns exp(log(bound)), an ulp or so
+// beyond it: that is the bound, not a value outside it.
+double bound_slack(double bound) { return 1e-9 * std::abs(bound); }
+
 // The poles of A = -C^-1 G all in the left half plane: with a symmetric G (a passive network)
 // exactly when every node has a path of positive conductances to ambient or a boundary; a source
 // driven by a temperature difference makes G non-symmetric and may also push a pole across, hence
@@ -49,7 +53,7 @@ std::string model_problems(const Network& net, const Eigen::VectorXd& params) {
     if (!std::isfinite(v)) {
       add("'" + p.name + "' is not finite");
       all_finite = false;
-    } else if (v < p.min || v > p.max) {
+    } else if (v < p.min - bound_slack(p.min) || v > p.max + bound_slack(p.max)) {
       add("'" + p.name + "' = " + value_text(v) + " " + p.unit + " is outside the network's bounds [" + value_text(p.min) +
           ", " + value_text(p.max) + "]");
     }

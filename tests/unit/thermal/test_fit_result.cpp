@@ -5,6 +5,7 @@
 
 #include <gtest/gtest.h>
 
+#include <cmath>
 #include <limits>
 
 namespace btsm::thermal {
@@ -43,6 +44,20 @@ TEST(FitResultProblem, UsableNonFiniteOutOfBoundsAndDegenerate) {
   EXPECT_NE(fit_result_problem(net, r).find("degenerate"), std::string::npos);
   r.rms_K = 0;  // a perfect fit: any heat at all is resolved
   EXPECT_EQ(fit_result_problem(net, r), "");
+}
+
+// A fit pinned at a log-scaled parameter's bound returns exp(log(bound)), an ulp beyond it: that
+// is the bound (the demo fit's R23 = 10000 K/W was refused as "outside [0.0001, 10000]").
+TEST(FitResultProblem, AValueAtItsBoundIsInsideIt) {
+  const Network net = preset_network("spindle4");
+  FitResult r = nominal_result(net);
+  const int i = net.param_index("R23");
+  const double max = net.params[static_cast<std::size_t>(i)].max;
+  r.params[i] = std::nextafter(max, 2 * max);
+  r.params[i] = std::nextafter(r.params[i], 2 * max);
+  EXPECT_EQ(fit_result_problem(net, r), "");
+  r.params[i] = max * (1 + 1e-6);
+  EXPECT_NE(fit_result_problem(net, r).find("'R23'"), std::string::npos);
 }
 
 TEST(FitResultProblem, SourcesTheNetworkHoldsAtZeroAreAChoice) {
