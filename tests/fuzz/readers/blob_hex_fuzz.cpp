@@ -5,6 +5,7 @@
 //     dropped); a refusal names a character that is not a hex digit or an odd digit count.
 //  2: Intel HEX: a parsed image, written out and parsed again, is the same image; errors are
 //     io::InputError only.
+#include "common/hex_text.hpp"
 #include "common/reduced_model.hpp"
 #include "fuzz_check.hpp"
 #include "host/io/hex.hpp"
@@ -31,13 +32,13 @@ void blob_codec(std::span<const uint8_t> bytes) {
 void hex_codec(const std::string& text) {
   const io::HexDecode d = io::decode_hex(text);
   if (!d.ok()) {
-    FUZZ_CHECK(d.bad_char ? io::hex_digit_value(text[d.bad_offset]) < 0 : d.odd_digits);
+    FUZZ_CHECK(d.bad_char ? hex_digit_value(text[d.bad_offset]) < 0 : d.odd_digits);
     FUZZ_CHECK(!d.problem(text).empty());
     return;
   }
   std::string digits;
   for (char c : text)
-    if (io::hex_digit_value(c) >= 0) digits += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
+    if (hex_digit_value(c) >= 0) digits += static_cast<char>(std::tolower(static_cast<unsigned char>(c)));
   FUZZ_CHECK(io::to_hex(d.bytes) == digits);
 }
 
