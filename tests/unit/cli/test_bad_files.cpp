@@ -7,6 +7,7 @@
 #include <gtest/gtest.h>
 
 #include <chrono>
+#include <filesystem>
 #include <string>
 
 namespace btsm::test {
@@ -120,6 +121,41 @@ TEST(BadFiles, DevZeroFailsFastAsEveryInput) {
   EXPECT_FALSE(file_exists(d.file("m.json")));
   EXPECT_FALSE(file_exists(d.file("r.json")));
   EXPECT_FALSE(file_exists(d.file("fw.hex")));
+}
+
+// What to build 3: every file is read through a size cap, and the refusal states the cap. Sparse
+// files just over each limit: a regular file is refused from its size, before a byte is read.
+TEST(BadFiles, FilesBeyondTheirLimitAreRefusedWithTheLimitNamed) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(50));
+  const auto sparse = [&](const char* name, std::uintmax_t bytes) {
+    write_text(d.file(name), "");
+    std::filesystem::resize_file(d.file(name), bytes);
+  };
+  constexpr std::uintmax_t kMiB = 1024 * 1024;
+  sparse("big.csv", 256 * kMiB + 1);
+  sparse("big.json", 16 * kMiB + 1);
+  sparse("big_blob.bin", 64 * 1024 + 1);
+  write_text(d.file("names_big_blob.json"), R"({"blob_file": "big_blob.bin"})");
+  struct Case {
+    std::string args, limit;
+  } cases[] = {
+      {"fit big.csv --preset spindle4 --out m.json", "larger than 256 MiB"},
+      {"validate model.json big.csv", "larger than 256 MiB"},
+      {"fit rec.csv --network big.json --out m.json", "larger than 16 MiB"},
+      {"validate big.json rec.csv", "larger than 16 MiB"},
+      {"reduce big.json --speeds 6000 --out r.json", "larger than 16 MiB"},
+      {"flash-model big.json --port /dev/null", "larger than 16 MiB"},
+      {"flash-model names_big_blob.json --port /dev/null", "larger than 64 KiB"},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = run_btsm(d, c.args, 20);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, c.limit)) << c.args << "\n" << r.err;
+  }
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+  EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
 // Row 4: a network of ~70,000 nested '[' crashed `fit` (stack overflow building the error).
