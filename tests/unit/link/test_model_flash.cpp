@@ -5,6 +5,7 @@
 #include "host/link/model_flash.hpp"
 #include "host/link/serial_transport.hpp"
 #include "link_test_support.hpp"
+#include "module_on_pty.hpp"
 
 #include <gtest/gtest.h>
 
@@ -18,20 +19,8 @@ using btsm::test::FakeModuleOptions;
 
 namespace {
 
-struct Rig {
-  test::PtyPair pty;
-  FakeModule module;
-  SerialTransport transport;
-  Session session;
-  explicit Rig(FakeModuleOptions o = {}) : module(pty.release_master(), o), transport(pty.path), session(transport, fast()) {
-    module.start();
-  }
-  static SessionOptions fast() {
-    SessionOptions so;
-    so.reply_timeout = Millis(300);
-    so.retries = 3;
-    return so;
-  }
+struct Rig : test::ModuleOnPty {
+  explicit Rig(FakeModuleOptions o = {}) : ModuleOnPty(o, test::quick_session(3)) {}
 };
 
 }  // namespace
