@@ -150,3 +150,22 @@ TEST(FlashModel, BusyAnswersAreRetriedNotFatal) {
   EXPECT_GT(rig.session.busy_answers(), 0u);
   EXPECT_EQ(rig.module.active_model(), blob);
 }
+
+// A blob of format version 1 (one state shared by all channels; tests/data/model-blob-v1) is
+// refused before anything is sent, by a message that names its version and what to do.
+TEST(FlashModel, VersionOneBlobIsRefusedNamingItsVersion) {
+  const auto v1 = load_model_blob(std::string(BTSM_TEST_DATA_DIR) + "/model-blob-v1/spindle_v1.bin");
+  ASSERT_EQ(v1.size(), 464u);
+  const std::string why = check_model_blob(v1);
+  EXPECT_NE(why.find("version 1"), std::string::npos) << why;
+  EXPECT_NE(why.find("reduce"), std::string::npos) << why;
+  Rig rig;
+  try {
+    flash_model(rig.session, v1, dev_key());
+    FAIL() << "a version-1 blob was flashed";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("version 1"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(rig.module.commit_payloads().size(), 0u);
+  EXPECT_TRUE(rig.module.active_model().empty());
+}
