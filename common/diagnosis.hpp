@@ -112,19 +112,26 @@ struct DiagChannelLimits {
   uint16_t max_rise_mK_per_min = 3000;  // 0 = rate check disabled
 };
 
-// The two CUSUM statistics of one channel (see the header).
-struct ResidualEvidence {
-  int32_t high = 0;  // mK x samples
-  int32_t low = 0;
+// The two CUSUM statistics of one channel (see the header), kept in 24 bits each (they are never
+// negative and capped below 2^24: 6 bytes per channel of the ATmega328P's 2 KB instead of 8).
+class ResidualEvidence {
+ public:
+  static constexpr int32_t kMax = 16777215L;  // 2^24 - 1, mK x samples
 
-  void reset() { high = low = 0; }
-  // One model step with residual r (mK). |r| is clamped to 2^22 mK and cap must be < 2^30, so
-  // no sum leaves int32.
+  int32_t high() const { return get(high_); }  // mK x samples
+  int32_t low() const { return get(low_); }
+  void reset() {
+    set(high_, 0);
+    set(low_, 0);
+  }
+  // One model step with residual r (mK). |r| is clamped to 2^22 mK and the cap to kMax, so no
+  // sum leaves int32.
   void add(int32_t residual_mK, uint16_t drift_mK, uint16_t low_drift_mK, int32_t cap) {
     const int32_t limit = 4194304L;
     const int32_t r = residual_mK > limit ? limit : (residual_mK < -limit ? -limit : residual_mK);
-    high = accumulate(high, r - drift_mK, cap);
-    low = accumulate(low, -r - low_drift_mK, cap);
+    const int32_t c = cap > kMax ? kMax : cap;
+    set(high_, accumulate(get(high_), r - drift_mK, c));
+    set(low_, accumulate(get(low_), -r - low_drift_mK, c));
   }
 
  private:
@@ -132,6 +139,18 @@ struct ResidualEvidence {
     s += v;
     return s < 0 ? 0 : (s > cap ? cap : s);
   }
+  static int32_t get(const uint8_t* b) {
+    return static_cast<int32_t>(static_cast<uint32_t>(b[0]) | (static_cast<uint32_t>(b[1]) << 8) |
+                                (static_cast<uint32_t>(b[2]) << 16));
+  }
+  static void set(uint8_t* b, int32_t v) {
+    const uint32_t u = static_cast<uint32_t>(v);
+    b[0] = static_cast<uint8_t>(u);
+    b[1] = static_cast<uint8_t>(u >> 8);
+    b[2] = static_cast<uint8_t>(u >> 16);
+  }
+  uint8_t high_[3] = {0, 0, 0};
+  uint8_t low_[3] = {0, 0, 0};
 };
 
 struct DiagTiming {
@@ -145,8 +164,8 @@ struct DiagTiming {
 
 struct DiagInput {
   int32_t measured_mK = kDiagNoValue;      // filtered temperature, degC * 1000
-  int32_t evidence_high = kDiagNoValue;    // ResidualEvidence::high, or kDiagNoValue without a prediction
-  int32_t evidence_low = kDiagNoValue;     // ResidualEvidence::low
+  int32_t evidence_high = kDiagNoValue;    // ResidualEvidence::high(), or kDiagNoValue without a prediction
+  int32_t evidence_low = kDiagNoValue;     // ResidualEvidence::low()
   int32_t rise_mK_per_min = kDiagNoValue;  // or kDiagNoValue (not yet known)
   bool fault = false;                      // channel fault flag for this sample
 };

@@ -43,7 +43,7 @@
 // THE DETECTOR PARAMETERS (per channel; the module's evidence, common/diagnosis.hpp):
 //   drift_mK           residual (measured - predicted) the upper evidence forgives per sample
 //   low_drift_mK       the same for the lower evidence (a model error's two signs differ in size)
-//   warn_evidence      upper evidence above -> WARN        (units: 100 mK x samples = 0.1 K sample)
+//   warn_evidence      upper evidence above -> WARN        (units: 128 mK x samples, a shift on the MCU)
 //   alarm_evidence     upper evidence above -> ALARM       (> warn_evidence)
 //   low_warn_evidence  lower evidence above -> WARN only   (0 = off): a probe colder than its model
 //   abs_limit_mK       measured above -> ALARM (degC * 1000)
@@ -111,9 +111,27 @@ const uint8_t kModelRoleAmbient = 1;      // = wire ChannelRole::Ambient
 const uint8_t kModelRoleUnchecked = 0xFF;
 
 const int kPoleFracBits = 30;   // a: Q1.30
-const int kStateFracBits = 10;  // T, b: Q21.10 mK
+const int kStateFracBits = 10;  // T, b: Q21.10 mK (model_step.hpp's shr10/shl10 are for 10)
 const int kSpeedFracBits = 16;  // interpolation fraction: Q0.16
-const int32_t kEvidenceUnitMkSamples = 100;  // one unit of the evidence thresholds
+const int32_t kEvidenceUnitMkSamples = 128;  // one unit of the evidence thresholds (2^kEvidenceUnitShift)
+const int kEvidenceUnitShift = 7;
+
+// A threshold in evidence units as mK x samples (u << 7), and the evidence cap of a channel:
+// 2 x its ALARM threshold = u << 8 (below 2^24 for any u16). On the AVR a 32-bit shift by 7 is a
+// 7-turn bit loop; as a byte move and one bit it is a few instructions (the empty asm keeps
+// avr-gcc from folding the two shifts back into one).
+inline int32_t evidence_mk_samples(uint16_t units) {
+#if defined(__AVR__)
+  uint32_t v = static_cast<uint32_t>(units) << 8;
+  __asm__("" : "+r"(v));
+  return static_cast<int32_t>(v >> 1);
+#else
+  return static_cast<int32_t>(static_cast<uint32_t>(units) << kEvidenceUnitShift);
+#endif
+}
+inline int32_t evidence_cap_mk_samples(uint16_t alarm_units) {
+  return static_cast<int32_t>(static_cast<uint32_t>(alarm_units) << (kEvidenceUnitShift + 1));
+}
 
 // Validation bounds (the host's quantizer applies them too).
 const int32_t kModelMaxSteadyRiseMk = 1000000;  // |b / (1 - a)| <= 1000 K

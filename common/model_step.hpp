@@ -80,10 +80,10 @@ inline SpeedSegment find_segment(const uint16_t* speeds, uint8_t n, uint16_t spe
 }
 
 // Stop phase 0 or 1 (the early poles stop_a[phase]) or kModelEarlyStopPhases (breakpoint 0's
-// poles), after stopped_ms of standstill.
-inline uint8_t stop_phase(const ModelSchedule& s, uint32_t stopped_ms) {
+// poles), after stopped_ms of standstill, for the schedule's stop_end_s.
+inline uint8_t stop_phase(const uint16_t stop_end_s[kModelEarlyStopPhases], uint32_t stopped_ms) {
   for (uint8_t k = 0; k < kModelEarlyStopPhases; ++k)
-    if (s.stop_end_s[k] != 0 && stopped_ms < static_cast<uint32_t>(s.stop_end_s[k]) * 1000UL) return k;
+    if (stop_end_s[k] != 0 && stopped_ms < static_cast<uint32_t>(stop_end_s[k]) * 1000UL) return k;
   return kModelEarlyStopPhases;
 }
 
@@ -199,6 +199,29 @@ BTSM_ALWAYS_INLINE int32_t round_q30(Wide p) {
 
 inline int32_t clamp32(int32_t v, int32_t limit) { return v > limit ? limit : (v < -limit ? -limit : v); }
 
+static_assert(kStateFracBits == 10, "shr10/shl10 are the state's scaling");
+// floor(v / 2^10) and v * 2^10 (v within +-2^21). On the AVR a 32-bit shift by 10 is a 10-turn
+// bit loop (~65 cycles); as a shift by 8 (byte moves) and one by 2 it is ~25. The empty asm keeps
+// avr-gcc from folding the two shifts back into one; elsewhere the plain shift.
+BTSM_ALWAYS_INLINE int32_t shr10(int32_t v) {
+#if defined(__AVR__)
+  int32_t s = v >> 8;
+  __asm__("" : "+r"(s));
+  return s >> 2;
+#else
+  return v >> 10;
+#endif
+}
+BTSM_ALWAYS_INLINE int32_t shl10(int32_t v) {
+#if defined(__AVR__)
+  uint32_t s = static_cast<uint32_t>(v) << 2;
+  __asm__("" : "+r"(s));
+  return static_cast<int32_t>(s << 8);
+#else
+  return static_cast<int32_t>(static_cast<uint32_t>(v) << 10);
+#endif
+}
+
 }  // namespace detail_rm
 
 // Coefficients between two breakpoints (out may alias lo: each member is read before it is
@@ -225,7 +248,7 @@ inline void interpolate(const ModelBreakpoint& lo, const ModelBreakpoint& hi, ui
 inline bool coefficients_at(const ReducedModel& m, uint16_t speed_rpm, uint32_t stopped_ms, ModelBreakpoint& out) {
   const SpeedSegment seg = find_segment(m.schedule.speed_rpm, m.schedule.n_breakpoints, speed_rpm);
   interpolate(m.bp[seg.lo], m.bp[seg.hi], seg.frac_q16, out);
-  const uint8_t phase = stop_phase(m.schedule, stopped_ms);
+  const uint8_t phase = stop_phase(m.schedule.stop_end_s, stopped_ms);
   if (!seg.running && phase < kModelEarlyStopPhases)
     for (uint8_t j = 0; j < kModelChannels; ++j) out.ch[j].a_q30 = m.stop_a_q30[phase][j];
   return seg.running;
@@ -242,7 +265,7 @@ inline bool init_from_measurement(uint8_t ambient_channel, uint8_t enabled_mask,
     const int32_t v = measured_mK[j] != kModelNoPrediction && model_predicts(enabled_mask, ambient_channel, j)
                           ? measured_mK[j]
                           : ambient_mK;
-    st.t[j] = static_cast<int32_t>(static_cast<uint32_t>(detail_rm::clamp32(v, kModelAmbientLimitMk)) << kStateFracBits);
+    st.t[j] = detail_rm::shl10(detail_rm::clamp32(v, kModelAmbientLimitMk));
   }
   st.stopped_ms = kModelLongStopped;
   return true;
@@ -265,7 +288,7 @@ inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_ch
   using namespace detail_rm;
   const bool have_ambient = ambient_mK != kModelNoPrediction;
   // The ambient as a state value (a shift: the state's unit is 2^-10 mK).
-  const int32_t amb = static_cast<int32_t>(static_cast<uint32_t>(clamp32(ambient_mK, kModelAmbientLimitMk)) << kStateFracBits);
+  const int32_t amb = shl10(clamp32(ambient_mK, kModelAmbientLimitMk));
   uint8_t bit = 1;
   for (uint8_t j = 0; j < kModelChannels; ++j, bit = static_cast<uint8_t>(bit << 1)) {
     if ((enabled_mask & bit) == 0 || !have_ambient) {
@@ -277,7 +300,7 @@ inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_ch
       continue;
     }
     const int32_t t = st.t[j];
-    predicted_mK[j] = (t + (1L << (kStateFracBits - 1))) >> kStateFracBits;  // nearest mK, ties up
+    predicted_mK[j] = shr10(t + (1L << (kStateFracBits - 1)));  // nearest mK, ties up
     // T' = T_amb + round(a (T - T_amb)) + u b. With 0 <= a < 1 the first two terms lie between
     // T_amb and T (|.| <= 2^30), |b| < 2^30 by validation: no 32-bit overflow before the clamp.
     int32_t next = amb + round_q30(mul_wide(p.ch[j].a_q30, t - amb));

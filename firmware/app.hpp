@@ -260,7 +260,7 @@ class App {
       model_last_step_ms_ = now;
       return;
     }
-    const uint8_t amb_ch = model_.schedule.ambient_channel;
+    const uint8_t amb_ch = model_.ambient_channel;
     const int32_t ambient = amb_ch < kChannels ? temp_mK_[amb_ch] : wire::kMissing;
     if (!model_initialised_) {
       // Every channel's model starts from its measured temperature (common init_from_measurement).
@@ -272,11 +272,11 @@ class App {
     // residuals go into the evidence.
     uint8_t steps = 0;
     bool stepped = false;
-    while (model_initialised_ && static_cast<uint32_t>(now - model_last_step_ms_) >= model_.schedule.dt_ms && steps < 64) {
+    while (model_initialised_ && static_cast<uint32_t>(now - model_last_step_ms_) >= model_.dt_ms && steps < 64) {
       store_.step_model(model_, model_state_, speed_rpm_, ambient, predicted_mK_);
       drop_mismatched_channels();
       diagnosis_.accumulate(model_.limits, temp_mK_, predicted_mK_);
-      model_last_step_ms_ += model_.schedule.dt_ms;
+      model_last_step_ms_ += model_.dt_ms;
       ++steps;
       stepped = true;
     }
@@ -295,7 +295,7 @@ class App {
   // its absolute and rise limits), and none does when the ambient channel is not the ambient.
   // The host refuses such a model before flashing (flash-model); this covers roles changed later.
   void drop_mismatched_channels() {
-    const ModelSchedule& s = model_.schedule;
+    const ModelRuntime& s = model_;
     const bool ambient_ok = s.ambient_channel >= kChannels ||
                             config_.roles[s.ambient_channel] == static_cast<uint8_t>(wire::ChannelRole::Ambient);
     for (uint8_t j = 0; j < kChannels; ++j) {

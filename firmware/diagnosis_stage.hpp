@@ -35,9 +35,8 @@ class DiagnosisStage {
         evidence_[j].reset();
         continue;
       }
-      // cap = 2 x the ALARM threshold (common/diagnosis.hpp): alarm_evidence x 200 mK samples.
-      const int32_t cap = static_cast<int32_t>(l.alarm_evidence) * (2 * kEvidenceUnitMkSamples);
-      evidence_[j].add(temp_mK[j] - predicted_mK[j], l.drift_mK, l.low_drift_mK, cap);
+      // cap = 2 x the ALARM threshold (common/diagnosis.hpp).
+      evidence_[j].add(temp_mK[j] - predicted_mK[j], l.drift_mK, l.low_drift_mK, evidence_cap_mk_samples(l.alarm_evidence));
     }
   }
   void reset_evidence() {
@@ -104,9 +103,9 @@ class DiagnosisStage {
     DiagChannelLimits lim;
     if (sw.limits != 0) {
       const ChannelLimits& l = sw.limits[j];
-      lim.warn_evidence = static_cast<int32_t>(l.warn_evidence) * kEvidenceUnitMkSamples;
-      lim.alarm_evidence = static_cast<int32_t>(l.alarm_evidence) * kEvidenceUnitMkSamples;
-      lim.low_warn_evidence = static_cast<int32_t>(l.low_warn_evidence) * kEvidenceUnitMkSamples;
+      lim.warn_evidence = evidence_mk_samples(l.warn_evidence);
+      lim.alarm_evidence = evidence_mk_samples(l.alarm_evidence);
+      lim.low_warn_evidence = evidence_mk_samples(l.low_warn_evidence);
       lim.abs_limit_mK = l.abs_limit_mK;
       lim.max_rise_mK_per_min = l.max_rise_mK_per_min;
     }
@@ -114,8 +113,8 @@ class DiagnosisStage {
     in.fault = fault;
     in.measured_mK = t_mK;
     if (sw.limits != 0 && sw.predicted_mK[j] != wire::kMissing && sw.limits[j].alarm_evidence != 0) {
-      in.evidence_high = evidence_[j].high;
-      in.evidence_low = evidence_[j].low;
+      in.evidence_high = evidence_[j].high();
+      in.evidence_low = evidence_[j].low();
     }
     in.rise_mK_per_min = kDiagNoValue;
     int32_t oldest;

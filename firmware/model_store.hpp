@@ -30,11 +30,17 @@
 
 namespace btsm {
 
-// What the firmware keeps of the active model in RAM (100 bytes instead of the 428-byte
-// ReducedModel): the schedule, the channel map and the detector limits. Coefficients stay in
-// EEPROM; ModelStore caches the ones for the current speed and stop phase.
+// What the firmware keeps of the active model in RAM (94 bytes instead of the 428-byte
+// ReducedModel): the schedule without its speeds, the channel map and the detector limits.
+// Coefficients and speeds stay in EEPROM (read on a speed change); ModelStore caches the
+// coefficients for the current speed and stop phase.
 struct ModelRuntime {
-  ModelSchedule schedule;
+  uint8_t n_breakpoints;
+  uint8_t ambient_channel;  // 0..4 or kModelAmbientNone
+  uint8_t enabled_mask;
+  uint16_t dt_ms;
+  uint16_t stop_end_s[kModelEarlyStopPhases];
+  uint8_t role[kModelChannels];
   ChannelLimits limits[kModelChannels];
 };
 
@@ -197,9 +203,10 @@ class ModelStore {
   // deepen the stack under everything else.
   BTSM_NOINLINE void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
                                 int32_t* predicted_mK) {
-    const ModelSchedule& s = rt.schedule;
-    const ModelBreakpoint& p = coefficients(rt, speed_rpm, stop_phase(s, st.stopped_ms));
-    step_with(p, speed_rpm > 0, s.ambient_channel, s.enabled_mask, s.dt_ms, st, ambient_mK, predicted_mK);
+    // The stop phase only matters while stopped (coefficients_at ignores it when running).
+    const uint8_t phase = speed_rpm > 0 ? kModelEarlyStopPhases : stop_phase(rt.stop_end_s, st.stopped_ms);
+    const ModelBreakpoint& p = coefficients(rt, speed_rpm, phase);
+    step_with(p, speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, rt.dt_ms, st, ambient_mK, predicted_mK);
   }
 
   // Initial state from measured temperatures (common init_from_measurement): called once after
@@ -207,15 +214,16 @@ class ModelStore {
   BTSM_NOINLINE bool init_state(const ModelRuntime& rt, ReducedModelState& st, int32_t ambient_mK,
                                 const int32_t* measured_mK) {
     if (!active()) return false;
-    return init_from_measurement(rt.schedule.ambient_channel, rt.schedule.enabled_mask, st, ambient_mK, measured_mK);
+    return init_from_measurement(rt.ambient_channel, rt.enabled_mask, st, ambient_mK, measured_mK);
   }
 
   // Parses and validates the blob of `slot` from EEPROM into `out` (same checks and order as the
   // common decode(): CRC, magic, version, reserved bytes, then validate()'s schedule, breakpoints,
-  // stop poles, limits). The breakpoints are checked one at a time as they are read and not kept
-  // (they stay in EEPROM): a 40-byte buffer instead of a 428-byte ReducedModel on the stack. `out`
-  // is modified even on failure.
+  // stop poles, limits). The coefficients are checked 40 bytes at a time as they are read and not
+  // kept (they stay in EEPROM): one 40-byte scratch buffer instead of a 428-byte ReducedModel on
+  // the stack. `out` is modified even on failure.
   BTSM_NOINLINE ModelCheck load_slot(uint8_t slot, ModelRuntime& out) const {
+    static_assert(BTSM_LITTLE_ENDIAN, "coefficients are read as little-endian int32");
     const uint16_t base = eeprom_layout::blob_addr(slot);
     uint32_t crc = 0;
     bool reserved_zero = true;
@@ -224,38 +232,58 @@ class ModelStore {
       crc = crc32(&b, 1, crc);
       if (i >= kBlobOffReserved && b != 0) reserved_zero = false;
     }
-    uint8_t buf[kBlobBreakpointSize];
-    static_assert(kBlobBreakpointSize >= kBlobOffBreakpoints, "the header is read into the breakpoint buffer");
+    // One scratch area for the header, each breakpoint, the stop poles and each channel's limits.
+    union {
+      uint8_t bytes[kBlobBreakpointSize];
+      ModelBreakpoint bp;
+      int32_t stop_a[kModelEarlyStopPhases][kModelChannels];
+    } scratch;
+    static_assert(sizeof scratch.stop_a == kBlobOffRoles - kBlobOffStopPoles, "stop poles fit the scratch area");
+    static_assert(sizeof scratch.bytes >= kBlobOffBreakpoints, "the header fits the scratch area");
+    uint8_t* buf = scratch.bytes;
     read_bytes(static_cast<uint16_t>(base + kBlobOffCrc), buf, 4);
     if (crc != get_le32(buf)) return model_check(ModelStatus::kBadCrc);
     read_bytes(base, buf, kBlobOffBreakpoints);
     if (get_le32(buf + kBlobOffMagic) != kReducedModelMagic) return model_check(ModelStatus::kBadMagic);
     if (buf[kBlobOffVersion] != kReducedModelVersion) return model_check(ModelStatus::kBadVersion, 0xFF, buf[kBlobOffVersion]);
     if (!reserved_zero) return model_check(ModelStatus::kUnusedNotZero);
-    ModelSchedule& s = out.schedule;
+    ModelSchedule s;
     decode_schedule(buf, s);
     read_bytes(static_cast<uint16_t>(base + kBlobOffRoles), s.role, kModelChannels);
     ModelCheck c = validate_schedule(s);
     for (uint8_t i = 0; i < kModelMaxBreakpoints && c.ok(); ++i) {
-      ModelBreakpoint bp;
       read_bytes(static_cast<uint16_t>(base + kBlobOffBreakpoints + kBlobBreakpointSize * i), buf, kBlobBreakpointSize);
-      decode_breakpoint(buf, bp);
-      c = validate_breakpoint(bp, i, s);
+      c = validate_breakpoint(scratch.bp, i, s);
     }
     if (!c.ok()) return c;
-    {
-      // The blob's little-endian int32 read in place.
-      static_assert(BTSM_LITTLE_ENDIAN, "stop poles are read as little-endian int32");
-      int32_t stop_a[kModelEarlyStopPhases][kModelChannels];
-      static_assert(sizeof stop_a == kBlobOffRoles - kBlobOffStopPoles, "stop poles");
-      read_bytes(static_cast<uint16_t>(base + kBlobOffStopPoles), reinterpret_cast<uint8_t*>(stop_a), sizeof stop_a);
-      c = validate_stop_poles(stop_a, s);
-      if (!c.ok()) return c;
+    read_bytes(static_cast<uint16_t>(base + kBlobOffStopPoles), buf, sizeof scratch.stop_a);
+    c = validate_stop_poles(scratch.stop_a, s);
+    if (!c.ok()) return c;
+    for (uint8_t j = 0; j < kModelChannels; ++j) {
+      // Channel j's fields (each field is an array over the channels).
+      read_bytes(static_cast<uint16_t>(base + kBlobOffDrift + 2 * j), buf, 2);
+      out.limits[j].drift_mK = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffLowDrift + 2 * j), buf, 2);
+      out.limits[j].low_drift_mK = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffWarnEvidence + 2 * j), buf, 2);
+      out.limits[j].warn_evidence = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffAlarmEvidence + 2 * j), buf, 2);
+      out.limits[j].alarm_evidence = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffLowWarnEvidence + 2 * j), buf, 2);
+      out.limits[j].low_warn_evidence = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffAbsLimits + 4 * j), buf, 4);
+      out.limits[j].abs_limit_mK = static_cast<int32_t>(get_le32(buf));
+      read_bytes(static_cast<uint16_t>(base + kBlobOffMaxRise + 2 * j), buf, 2);
+      out.limits[j].max_rise_mK_per_min = get_le16(buf);
     }
-    uint8_t fields[kBlobOffReserved - kBlobOffDrift];
-    read_bytes(static_cast<uint16_t>(base + kBlobOffDrift), fields, sizeof fields);
-    for (uint8_t j = 0; j < kModelChannels; ++j) decode_limits_from_fields(fields, j, out.limits[j]);
-    return validate_limits(out.limits, s);
+    c = validate_limits(out.limits, s);
+    out.n_breakpoints = s.n_breakpoints;
+    out.ambient_channel = s.ambient_channel;
+    out.enabled_mask = s.enabled_mask;
+    out.dt_ms = s.dt_ms;
+    for (uint8_t k = 0; k < kModelEarlyStopPhases; ++k) out.stop_end_s[k] = s.stop_end_s[k];
+    for (uint8_t j = 0; j < kModelChannels; ++j) out.role[j] = s.role[j];
+    return c;
   }
 
  private:
@@ -349,15 +377,16 @@ class ModelStore {
     static_assert(sizeof(ModelBreakpoint) == kBlobBreakpointSize && sizeof(ChannelCoeffs) == kBlobChannelCoeffSize,
                   "ModelBreakpoint must be the blob's ten little-endian int32 in member order");
     static_assert(BTSM_LITTLE_ENDIAN, "coefficients are read as little-endian int32");
-    const ModelSchedule& s = rt.schedule;
-    const SpeedSegment seg = find_segment(s.speed_rpm, s.n_breakpoints, speed_rpm);
     const uint16_t blob = eeprom_layout::blob_addr(active_slot_);
+    uint16_t speeds[kModelMaxBreakpoints];  // little-endian u16 in place (the static_assert above)
+    read_bytes(static_cast<uint16_t>(blob + kBlobOffSpeeds), reinterpret_cast<uint8_t*>(speeds), sizeof speeds);
+    const SpeedSegment seg = find_segment(speeds, rt.n_breakpoints, speed_rpm);
     const uint16_t first = static_cast<uint16_t>(blob + kBlobOffBreakpoints);
     uint8_t* out = reinterpret_cast<uint8_t*>(&coeff_);
     read_bytes(static_cast<uint16_t>(first + kBlobBreakpointSize * seg.lo), out, kBlobBreakpointSize);
     // The channels with a model of their own (step_with skips the others).
-    uint8_t channels = static_cast<uint8_t>(s.enabled_mask & 0x1FU);
-    if (s.ambient_channel < kModelChannels) channels = static_cast<uint8_t>(channels & ~(1U << s.ambient_channel));
+    uint8_t channels = static_cast<uint8_t>(rt.enabled_mask & 0x1FU);
+    if (rt.ambient_channel < kModelChannels) channels = static_cast<uint8_t>(channels & ~(1U << rt.ambient_channel));
     if (!seg.running && phase < kModelEarlyStopPhases) {
       // An early stop phase: its poles replace breakpoint 0's.
       uint16_t a = static_cast<uint16_t>(blob + kBlobOffStopPoles + 4 * kModelChannels * phase);

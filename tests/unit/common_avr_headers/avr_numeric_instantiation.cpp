@@ -38,8 +38,8 @@ int main() {
     const int32_t t_mK = static_cast<int32_t>(kalman[j].estimate() * 1000.0f);
     in[j].measured_mK = t_mK;
     evidence[j].add(t_mK - predicted[j], 500, 700, 1000000);
-    in[j].evidence_high = evidence[j].high;
-    in[j].evidence_low = evidence[j].low;
+    in[j].evidence_high = evidence[j].high();
+    in[j].evidence_low = evidence[j].low();
     in[j].rise_mK_per_min = rise[j].push(t_mK);
     in[j].fault = !r.ok() || !t.ok();
   }

@@ -247,33 +247,36 @@ TEST_F(DiagTransition, LowerEvidenceNeverAlarms) {
 TEST(ResidualEvidence, AccumulatesTheExcessOverTheDriftBothWays) {
   ResidualEvidence e;
   for (int i = 0; i < 100; ++i) e.add(300, 500, 500, 100000);
-  EXPECT_EQ(e.high, 0);
-  EXPECT_EQ(e.low, 0);
+  EXPECT_EQ(e.high(), 0);
+  EXPECT_EQ(e.low(), 0);
   e.add(1700, 500, 500, 100000);
-  EXPECT_EQ(e.high, 1200);
+  EXPECT_EQ(e.high(), 1200);
   e.add(1700, 500, 500, 100000);
-  EXPECT_EQ(e.high, 2400);
+  EXPECT_EQ(e.high(), 2400);
   e.add(-100, 500, 500, 100000);
-  EXPECT_EQ(e.high, 1800);
-  EXPECT_EQ(e.low, 0);
+  EXPECT_EQ(e.high(), 1800);
+  EXPECT_EQ(e.low(), 0);
   for (int i = 0; i < 1000; ++i) e.add(8000000, 500, 500, 100000);
-  EXPECT_EQ(e.high, 100000) << "capped";
+  EXPECT_EQ(e.high(), 100000) << "capped";
   e.add(-2147483647, 0, 0, 100000);
-  EXPECT_EQ(e.high, 100000 - 4194304 < 0 ? 0 : 100000 - 4194304);
-  EXPECT_EQ(e.low, 100000);
+  EXPECT_EQ(e.high(), 0);
+  for (int i = 0; i < 10; ++i) e.add(4194304, 0, 0, 2000000000);
+  EXPECT_EQ(e.high(), ResidualEvidence::kMax) << "24 bits, whatever the cap";
+  e.add(-2147483647, 0, 0, 100000);
+  EXPECT_EQ(e.low(), 100000);
   e.reset();
-  EXPECT_EQ(e.high + e.low, 0);
+  EXPECT_EQ(e.high() + e.low(), 0);
   // Each side forgives its own drift.
   e.add(-800, 500, 1000, 100000);
-  EXPECT_EQ(e.low, 0);
+  EXPECT_EQ(e.low(), 0);
   e.add(800, 1000, 500, 100000);
-  EXPECT_EQ(e.high, 0);
+  EXPECT_EQ(e.high(), 0);
   e.add(-1800, 500, 1000, 100000);
-  EXPECT_EQ(e.low, 800);
+  EXPECT_EQ(e.low(), 800);
   // A constant excess r above the drift k reaches a threshold h after ceil(h / (r - k)) samples.
   ResidualEvidence f;
   int n = 0;
-  while (f.high <= 24000) f.add(1500, 500, 500, 48000), ++n;
+  while (f.high() <= 24000) f.add(1500, 500, 500, 48000), ++n;
   EXPECT_EQ(n, 25);
 }
 

@@ -1,5 +1,6 @@
 // Reduced-model blob (format version 2): layout, codec round trip, fault injection at every byte,
 // a real version-1 blob refused by name, validation of every rule, quantisation errors.
+#include "common/diagnosis.hpp"
 #include "common/model_blob.hpp"
 #include "host/thermal/model_reference.hpp"
 
@@ -68,9 +69,9 @@ TEST(ReducedModelBlob, LayoutIsLittleEndianWithMagicVersionTwoAndCrcLast) {
   for (int j = 0; j < 5; ++j) EXPECT_EQ(b[kBlobOffRoles + j], roles[j]) << j;
   EXPECT_EQ(get_le16(&b[kBlobOffDrift]), 400);
   EXPECT_EQ(get_le16(&b[kBlobOffLowDrift + 2]), 600);
-  EXPECT_EQ(get_le16(&b[kBlobOffWarnEvidence + 2]), 180);   // 1.5 K min at 5 s = 18,000 mK samples
-  EXPECT_EQ(get_le16(&b[kBlobOffAlarmEvidence + 4]), 360);
-  EXPECT_EQ(get_le16(&b[kBlobOffLowWarnEvidence]), 240);
+  EXPECT_EQ(get_le16(&b[kBlobOffWarnEvidence + 2]), 141);   // 1.5 K min at 5 s = 18,000 mK samples / 128
+  EXPECT_EQ(get_le16(&b[kBlobOffAlarmEvidence + 4]), 281);   // 36,000 / 128 = 281.25
+  EXPECT_EQ(get_le16(&b[kBlobOffLowWarnEvidence]), 188);     // 24,000 / 128 = 187.5
   EXPECT_EQ(get_le16(&b[kBlobOffDrift + 6]), 0) << "the ambient channel has no detector";
   EXPECT_EQ(static_cast<int32_t>(get_le32(&b[kBlobOffAbsLimits + 4 * 4])), 70000);
   EXPECT_EQ(get_le16(&b[kBlobOffMaxRise]), 3000);
@@ -81,9 +82,14 @@ TEST(ReducedModelBlob, LayoutIsLittleEndianWithMagicVersionTwoAndCrcLast) {
 }
 
 TEST(ReducedModelBlob, EvidenceUnitsConvertBothWays) {
-  EXPECT_DOUBLE_EQ(thermal::evidence_units(1.0, 5000), 120.0);  // 1 K min = 12 samples x 1000 mK / 100
-  EXPECT_DOUBLE_EQ(thermal::evidence_units(1.0, 2000), 300.0);
-  EXPECT_DOUBLE_EQ(thermal::evidence_K_min(120, 5000), 1.0);
+  EXPECT_DOUBLE_EQ(thermal::evidence_units(1.0, 5000), 93.75);  // 1 K min = 12 samples x 1000 mK / 128
+  EXPECT_DOUBLE_EQ(thermal::evidence_units(1.0, 2000), 234.375);
+  EXPECT_DOUBLE_EQ(thermal::evidence_K_min(96, 5000), 1.024);
+  // On the module: units x 128, and the evidence cap 2 x the ALARM threshold, within 24 bits.
+  EXPECT_EQ(evidence_mk_samples(94), 12032);
+  EXPECT_EQ(evidence_mk_samples(65535), 8388480);
+  EXPECT_EQ(evidence_cap_mk_samples(65535), 16776960);
+  EXPECT_LE(evidence_cap_mk_samples(65535), ResidualEvidence::kMax);
 }
 
 TEST(ReducedModelBlob, RoundTripIsExact) {
@@ -97,7 +103,7 @@ TEST(ReducedModelBlob, RoundTripIsExact) {
   EXPECT_EQ(back.stop_a_q30[0][4], m.stop_a_q30[0][4]);
   EXPECT_EQ(back.schedule.role[4], 8);
   EXPECT_EQ(back.limits[2].abs_limit_mK, 70000);
-  EXPECT_EQ(back.limits[1].low_warn_evidence, 240);
+  EXPECT_EQ(back.limits[1].low_warn_evidence, 188);
 }
 
 TEST(ReducedModelBlob, EveryByteCorruptionIsRejectedByCrc) {
@@ -191,7 +197,7 @@ TEST(ReducedModelBlob, EveryContentRuleIsEnforcedWithLocation) {
       {"drift 0", [](std::vector<uint8_t>& b) { put_le16(&b[kBlobOffDrift + 2], 0); }, ModelStatus::kBadDetector, 0xFF, 1},
       {"lower warn without its drift", [](std::vector<uint8_t>& b) { put_le16(&b[kBlobOffLowDrift + 4], 0); }, ModelStatus::kBadDetector, 0xFF, 2},
       {"warn 0", [](std::vector<uint8_t>& b) { put_le16(&b[kBlobOffWarnEvidence + 2], 0); }, ModelStatus::kBadDetector, 0xFF, 1},
-      {"alarm <= warn", [](std::vector<uint8_t>& b) { put_le16(&b[kBlobOffAlarmEvidence + 8], 180); }, ModelStatus::kBadDetector, 0xFF, 4},
+      {"alarm <= warn", [](std::vector<uint8_t>& b) { put_le16(&b[kBlobOffAlarmEvidence + 8], 141); }, ModelStatus::kBadDetector, 0xFF, 4},
       {"detector on the ambient channel", [](std::vector<uint8_t>& b) { put_le16(&b[kBlobOffDrift + 6], 1); }, ModelStatus::kUnusedNotZero, 0xFF, 3},
       {"limit 851 C", [](std::vector<uint8_t>& b) { set32(b, kBlobOffAbsLimits + 8, 851000); }, ModelStatus::kLimitOutOfRange, 0xFF, 2},
       {"limit -201 C", [](std::vector<uint8_t>& b) { set32(b, kBlobOffAbsLimits, -201000); }, ModelStatus::kLimitOutOfRange, 0xFF, 0},
@@ -252,7 +258,7 @@ TEST(ReducedModelQuantize, RejectsValuesThatDoNotFitWithLocation) {
       {"drift 70 K", [](ReducedModelF64& f) { f.detector[0].drift_K = 70.0; }, ModelStatus::kLimitOutOfRange, 0xFF, 0},
       {"lower drift negative", [](ReducedModelF64& f) { f.detector[4].low_drift_K = -0.1; }, ModelStatus::kLimitOutOfRange, 0xFF, 4},
       {"rise NaN", [](ReducedModelF64& f) { f.detector[2].max_rise_K_per_min = NAN; }, ModelStatus::kLimitOutOfRange, 0xFF, 2},
-      {"evidence beyond u16", [](ReducedModelF64& f) { f.detector[1].alarm_evidence_K_min = 600.0; }, ModelStatus::kLimitOutOfRange, 0xFF, 1},
+      {"evidence beyond u16", [](ReducedModelF64& f) { f.detector[1].alarm_evidence_K_min = 800.0; }, ModelStatus::kLimitOutOfRange, 0xFF, 1},
       {"limit 900 C", [](ReducedModelF64& f) { f.detector[1].abs_limit_c = 900.0; }, ModelStatus::kLimitOutOfRange, 0xFF, 1},
   };
   for (const Case& k : cases) {

@@ -160,12 +160,12 @@ TEST(ReducedModelEval, FractionDivisionIsExact) {
 // breakpoint 0 at once.
 TEST(ReducedModelEval, StopPhasesFollowTheTimeSinceTheStop) {
   const ReducedModel m = quantized_spindle();
-  EXPECT_EQ(stop_phase(m.schedule, 0), 0);
-  EXPECT_EQ(stop_phase(m.schedule, 599999), 0);
-  EXPECT_EQ(stop_phase(m.schedule, 600000), 1);
-  EXPECT_EQ(stop_phase(m.schedule, 2399999), 1);
-  EXPECT_EQ(stop_phase(m.schedule, 2400000), 2);
-  EXPECT_EQ(stop_phase(m.schedule, kModelLongStopped), 2);
+  EXPECT_EQ(stop_phase(m.schedule.stop_end_s, 0), 0);
+  EXPECT_EQ(stop_phase(m.schedule.stop_end_s, 599999), 0);
+  EXPECT_EQ(stop_phase(m.schedule.stop_end_s, 600000), 1);
+  EXPECT_EQ(stop_phase(m.schedule.stop_end_s, 2399999), 1);
+  EXPECT_EQ(stop_phase(m.schedule.stop_end_s, 2400000), 2);
+  EXPECT_EQ(stop_phase(m.schedule.stop_end_s, kModelLongStopped), 2);
   ReducedModelState st;
   init_at_ambient(st, 20000);
   EXPECT_EQ(st.stopped_ms, kModelLongStopped) << "a start is long stopped";
@@ -185,7 +185,7 @@ TEST(ReducedModelEval, StopPhasesFollowTheTimeSinceTheStop) {
   EXPECT_EQ(p.ch[0].a_q30, m.bp[3].ch[0].a_q30) << "running ignores the stop clock";
   ReducedModel single = m;
   single.schedule.stop_end_s[0] = single.schedule.stop_end_s[1] = 0;
-  EXPECT_EQ(stop_phase(single.schedule, 0), 2);
+  EXPECT_EQ(stop_phase(single.schedule.stop_end_s, 0), 2);
 }
 
 TEST(ReducedModelEval, EachChannelSettlesToItsOwnSteadyRise) {

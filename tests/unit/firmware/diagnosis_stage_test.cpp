@@ -22,7 +22,7 @@ struct Sweeps {
     for (int j = 0; j < 5; ++j) {
       limits[j].drift_mK = 500;
       limits[j].low_drift_mK = 500;
-      limits[j].warn_evidence = 10;  // 1000 mK samples
+      limits[j].warn_evidence = 10;  // 1280 mK samples
       limits[j].alarm_evidence = 20;
       limits[j].low_warn_evidence = 10;
       limits[j].abs_limit_mK = 90000;
@@ -89,15 +89,15 @@ TEST(DiagnosisStage, LatchedAlarmIsHeldUntilAcknowledged) {
 TEST(DiagnosisStage, EvidenceAccumulatesALastingExcessAndForgivesTheDrift) {
   Sweeps s;
   s.roles[4] = static_cast<uint8_t>(ChannelRole::Shaft);
-  s.limits[4].warn_evidence = 120;   // 12,000 mK samples
-  s.limits[4].alarm_evidence = 240;  // 24,000
-  s.limits[4].low_warn_evidence = 120;
+  s.limits[4].warn_evidence = 94;   // 12,032 mK samples
+  s.limits[4].alarm_evidence = 188;  // 24,064
+  s.limits[4].low_warn_evidence = 94;
   DiagnosisStage d;
   d.configure(true);
   s.temp_mK[4] = s.predicted_mK[4] + 499;  // just within the drift: for a day
   for (int k = 0; k < 17280; ++k) s.sweep(d);
   EXPECT_EQ(d.state(4), static_cast<uint8_t>(DiagState::kNormal));
-  EXPECT_EQ(d.evidence(4).high, 0);
+  EXPECT_EQ(d.evidence(4).high(), 0);
   s.temp_mK[4] = s.predicted_mK[4] + 1500;  // 1000 mK above the drift per sample
   int warn_at = -1, alarm_at = -1;
   for (int k = 1; k <= 60 && alarm_at < 0; ++k) {
@@ -105,8 +105,8 @@ TEST(DiagnosisStage, EvidenceAccumulatesALastingExcessAndForgivesTheDrift) {
     if (warn_at < 0 && d.state(4) == static_cast<uint8_t>(DiagState::kWarn)) warn_at = k;
     if (d.state(4) == static_cast<uint8_t>(DiagState::kAlarm)) alarm_at = k;
   }
-  EXPECT_EQ(warn_at, 13 + 2);   // evidence 13,000 > 12,000 after 13 samples, held 3 samples
-  EXPECT_EQ(alarm_at, 25 + 2);  // 25,000 > 24,000
+  EXPECT_EQ(warn_at, 13 + 2);   // evidence 13,000 > 12,032 after 13 samples, held 3 samples
+  EXPECT_EQ(alarm_at, 25 + 2);  // 25,000 > 24,064
   // Colder than the model: WARN, never ALARM.
   Sweeps c;
   c.roles[4] = static_cast<uint8_t>(ChannelRole::Shaft);
@@ -115,12 +115,12 @@ TEST(DiagnosisStage, EvidenceAccumulatesALastingExcessAndForgivesTheDrift) {
   dc.configure(true);
   for (int k = 0; k < 1000; ++k) c.sweep(dc);
   EXPECT_EQ(dc.state(4), static_cast<uint8_t>(DiagState::kWarn));
-  EXPECT_GT(dc.evidence(4).low, 0);
-  EXPECT_EQ(dc.evidence(4).high, 0);
+  EXPECT_GT(dc.evidence(4).low(), 0);
+  EXPECT_EQ(dc.evidence(4).high(), 0);
   // Without a prediction the evidence starts afresh.
   c.predicted_mK[4] = wire::kMissing;
   c.sweep(dc);
-  EXPECT_EQ(dc.evidence(4).low, 0);
+  EXPECT_EQ(dc.evidence(4).low(), 0);
 }
 
 }  // namespace

@@ -79,14 +79,13 @@ std::vector<uint8_t> active_blob(ModelStore<Storage>& store) {
 
 // Field by field (the structs have padding).
 void expect_same(const ModelRuntime& rt, const ModelSchedule& s, const ChannelLimits* l) {
-  EXPECT_EQ(rt.schedule.n_breakpoints, s.n_breakpoints);
-  EXPECT_EQ(rt.schedule.ambient_channel, s.ambient_channel);
-  EXPECT_EQ(rt.schedule.enabled_mask, s.enabled_mask);
-  EXPECT_EQ(rt.schedule.dt_ms, s.dt_ms);
-  for (int k = 0; k < kModelEarlyStopPhases; ++k) EXPECT_EQ(rt.schedule.stop_end_s[k], s.stop_end_s[k]);
-  for (int i = 0; i < kModelMaxBreakpoints; ++i) EXPECT_EQ(rt.schedule.speed_rpm[i], s.speed_rpm[i]);
+  EXPECT_EQ(rt.n_breakpoints, s.n_breakpoints);
+  EXPECT_EQ(rt.ambient_channel, s.ambient_channel);
+  EXPECT_EQ(rt.enabled_mask, s.enabled_mask);
+  EXPECT_EQ(rt.dt_ms, s.dt_ms);
+  for (int k = 0; k < kModelEarlyStopPhases; ++k) EXPECT_EQ(rt.stop_end_s[k], s.stop_end_s[k]);
   for (int j = 0; j < kModelChannels; ++j) {
-    EXPECT_EQ(rt.schedule.role[j], s.role[j]) << j;
+    EXPECT_EQ(rt.role[j], s.role[j]) << j;
     EXPECT_EQ(rt.limits[j].drift_mK, l[j].drift_mK) << j;
     EXPECT_EQ(rt.limits[j].low_drift_mK, l[j].low_drift_mK) << j;
     EXPECT_EQ(rt.limits[j].warn_evidence, l[j].warn_evidence) << j;
@@ -132,7 +131,7 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
   ASSERT_TRUE(again.load_slot(0, parsed).ok());
   expect_same(parsed, ref.schedule, ref.limits);
   expect_same(loaded, ref.schedule, ref.limits);
-  EXPECT_EQ(loaded.schedule.role[0], 3) << "the channel map survives the reboot";
+  EXPECT_EQ(loaded.role[0], 3) << "the channel map survives the reboot";
   // A second model goes to the other slot with the next sequence number.
   const auto blob2 = test::model_blob(1.0);
   ASSERT_EQ(upload(board, again, loaded, blob2, key, key).commit, Nack::Ok);
