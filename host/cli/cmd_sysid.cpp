@@ -190,7 +190,7 @@ void run_validate(const ValidateArgs& a) {
 struct ReduceArgs {
   std::string model, speeds, out, blob, channels, stop_phases = "600,2400";
   std::vector<std::string> calibrate;
-  double dt = 5.0, cooling_ref = 0.0;
+  double dt = 5.0, cooling_ref = 0.0, design_heat_w = 10.0;
   ChannelDetector detector;
   DetectorRule rule;
   bool force = false, json_out = false;
@@ -302,6 +302,17 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   o.dt_s = a.dt;
   o.cooling_reference_rpm = a.cooling_ref;
   o.detector = a.detector;
+  o.design_heat_w = a.design_heat_w;
+  if (!(a.design_heat_w > 0)) throw CommandError(kExitUsage, "--design-heat must be > 0 W");
+  // The calibration recordings first: the duty cycle the detector covers runs up to their top speed.
+  std::vector<Recording> calib;
+  if (!a.calibrate.empty()) {
+    calib = read_all(a.calibrate);
+    double top = 0;
+    for (const auto& rec : calib)
+      for (double v : rec.speed_rpm) top = std::max(top, v);
+    o.duty_max_rpm = top;
+  }
   const ChannelDetector& d = a.detector;
   if (!a.calibrate.empty() && !explicit_detector.empty())
     throw CommandError(kExitUsage, "--calibrate-bands sets " + explicit_detector.front() + " from the recordings: give one or the other");
@@ -324,15 +335,14 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     throw CommandError(kExitFailure, std::string("the model does not fit the module's blob: ") + model_status_name(r.quantize_status.status));
   json calibration;
   if (!a.calibrate.empty()) {
-    const auto recs = read_all(a.calibrate);
     std::vector<const Recording*> ptrs;
-    for (const auto& rec : recs) ptrs.push_back(&rec);
+    for (const auto& rec : calib) ptrs.push_back(&rec);
     std::array<std::string, kModelChannels> columns;
     for (int ch = 0; ch < 5; ++ch)
       if (o.channel_node[static_cast<std::size_t>(ch)] >= 0) columns[static_cast<std::size_t>(ch)] = "T" + std::to_string(ch + 1);
     DetectorCalibration cal;
     try {
-      cal = calibrate_detector(r.quantized, r.model, ptrs, columns, a.rule);
+      cal = calibrate_detector(r, ptrs, columns, a.rule);
     } catch (const std::invalid_argument& e) {
       throw CommandError(kExitUsage, e.what());
     }
@@ -341,18 +351,22 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     if (!r.quantize_status.ok())
       throw CommandError(kExitFailure, std::string("the calibrated detector does not fit the blob: ") + model_status_name(r.quantize_status.status));
     std::cerr << "reduce: detector calibrated on " << cal.recordings << " recordings (" << cal.rule << "):\n";
-    calibration = {{"rule", cal.rule}, {"recordings", a.calibrate}, {"channels", json::array()}};
+    calibration = {{"rule", cal.rule}, {"recordings", a.calibrate}, {"duty_cycle", r.duty.profile}, {"channels", json::array()}};
     for (int ch = 0; ch < 5; ++ch) {
       const ChannelCalibration& cc = cal.channels[static_cast<std::size_t>(ch)];
       if (!cc.diagnosed) continue;
-      std::cerr << fmt::format("  ch{}: worst residual {:.2f} K above the model -> drift {:.2f} K, worst evidence {:.2f} K min -> "
-                               "WARN {:.2f}, ALARM {:.2f} K min; {:.2f} K below -> drift {:.2f} K, worst {:.2f} -> WARN {:.2f} K min\n",
+      std::cerr << fmt::format("  ch{}: worst residual {:.2f} K above the model; drift {:.2f} K, worst evidence {:.2f} K min -> "
+                               "WARN {:.2f}, ALARM {:.2f} K min ({:g} W more: ALARM after {}); {:.2f} K below; drift {:.2f} K, "
+                               "worst {:.2f} -> WARN {:.2f} K min\n",
                                ch + 1, cc.worst_above_K, cc.detector.drift_K, cc.worst_high_K_min, cc.detector.warn_evidence_K_min,
-                               cc.detector.alarm_evidence_K_min, cc.worst_below_K, cc.detector.low_drift_K, cc.worst_low_K_min,
-                               cc.detector.low_warn_evidence_K_min);
+                               cc.detector.alarm_evidence_K_min, r.design_fault.heat_w,
+                               cc.design_alarm_min < 0 ? std::string("not within 2 h") : fmt::format("{:.1f} min", cc.design_alarm_min),
+                               cc.worst_below_K, cc.detector.low_drift_K, cc.worst_low_K_min, cc.detector.low_warn_evidence_K_min);
       calibration["channels"].push_back({{"channel", ch + 1}, {"column", cc.column}, {"samples", cc.samples},
-                                         {"worst_residual_K", cc.worst_residual_K}, {"worst_upper_evidence_K_min", cc.worst_high_K_min},
-                                         {"worst_lower_evidence_K_min", cc.worst_low_K_min}});
+                                         {"worst_above_K", cc.worst_above_K}, {"worst_below_K", cc.worst_below_K},
+                                         {"worst_upper_evidence_K_min", cc.worst_high_K_min},
+                                         {"worst_lower_evidence_K_min", cc.worst_low_K_min},
+                                         {"design_fault_alarm_min", cc.design_alarm_min}});
     }
   } else {
     // Hand-set thresholds: not below what the model's own error (against the full network, over
@@ -492,7 +506,8 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
         ->check(CLI::ExistingFile);
     c->add_option("--margin", a->rule.margin, "Calibration: WARN = margin x worst evidence + floor (default 1.5)");
-    c->add_option("--drift-fraction", a->rule.drift_fraction, "Calibration: drift = this x worst |residual| (default 0.75)");
+    c->add_option("--design-heat", a->design_heat_w,
+                  "Calibration: the extra heat (W) at a channel's node whose ALARM the drift makes soonest (default 10)");
     c->add_option("--drift", a->detector.drift_K, "Detector drift in K: residual above the model forgiven per sample (default 0.5)");
     c->add_option("--low-drift", a->detector.low_drift_K, "The same below the model, K (default 0.5)");
     c->add_option("--warn-evidence", a->detector.warn_evidence_K_min, "WARN threshold of the evidence in K min (default 2)");

@@ -142,6 +142,9 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   ro.speeds_rpm = in.reduce_speeds_rpm;
   ro.dt_s = in.sample_period_s;
   ro.channel_node = {{0, 1, 2, -1, 3}};  // ch5 = the probe on the shaft end
+  for (const auto* set : {&fit_recs, &check_recs})  // the duty cycle runs up to the recorded top speed
+    for (const auto& r : *set)
+      for (double v : r.speed_rpm) ro.duty_max_rpm = std::max(ro.duty_max_rpm, v);
   progress("reducing to one first-order model per channel");
   thermal::ScheduledReduction red = thermal::build_scheduled_model(final_net, final_params, ro);
   if (red.blob.empty()) {
@@ -154,7 +157,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   for (const auto& r : check_recs) all_recs.push_back(&r);
   const std::array<std::string, kModelChannels> channel_columns = {"T1", "T2", "T3", "", "T5"};
   const thermal::DetectorCalibration cal =
-      thermal::calibrate_detector(red.quantized, red.model, all_recs, channel_columns, in.detector_rule);
+      thermal::calibrate_detector(red, all_recs, channel_columns, in.detector_rule);
   thermal::apply_calibration(cal, red.model);
   thermal::requantize(red);
   if (red.blob.empty()) {
@@ -186,6 +189,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
       if (!cc.diagnosed) continue;
       cb.push_back({{"channel", j + 1}, {"column", cc.column}, {"worst_normal_residual_K", cc.worst_residual_K},
                     {"worst_upper_evidence_K_min", cc.worst_high_K_min}, {"worst_lower_evidence_K_min", cc.worst_low_K_min},
+                    {"design_fault_alarm_min", cc.design_alarm_min},
                     {"worst_above_K", cc.worst_above_K}, {"worst_below_K", cc.worst_below_K},
                     {"drift_K", cc.detector.drift_K}, {"low_drift_K", cc.detector.low_drift_K},
                     {"warn_evidence_K_min", cc.detector.warn_evidence_K_min},

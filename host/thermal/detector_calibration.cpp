@@ -12,12 +12,23 @@
 
 namespace btsm::thermal {
 
-std::string DetectorRule::describe() const {
+std::string DetectorRule::describe(const FaultSignature& design) const {
   return fmt::format(
-      "replay of the module's model over the recordings; per channel drift = max({:g} K, {:g} x worst residual above "
-      "the model) and lower drift the same below, "
-      "WARN = {:g} x worst upper evidence + {:g} K min, ALARM = {:g} x WARN, lower WARN = {:g} x worst lower evidence + {:g} K min",
-      drift_floor_K, drift_fraction, margin, evidence_floor_K_min, alarm_factor, margin, evidence_floor_K_min);
+      "the module's model replayed over the recordings{}; per channel and side, for each drift d in steps of {:g} K: "
+      "WARN = {:g} x worst evidence + {:g} K min, ALARM = {:g} x WARN; the drift whose ALARM (lower: WARN) {:g} W more "
+      "at the channel's node at {:.0f} rpm reaches soonest",
+      include_duty_cycle ? " and against the fitted network over the duty cycle" : "", drift_floor_K, margin,
+      evidence_floor_K_min, alarm_factor, design.heat_w, design.speed_rpm);
+}
+
+double minutes_to_evidence(const std::vector<double>& rise, double drift_K, double threshold_K_min, uint16_t dt_ms) {
+  const double per_step = dt_ms / 60000.0;
+  double ev = 0;
+  for (std::size_t k = 0; k < rise.size(); ++k) {
+    ev = std::max(0.0, ev + (rise[k] - drift_K) * per_step);
+    if (ev > threshold_K_min) return (k + 1) * per_step;
+  }
+  return -1;
 }
 
 std::array<std::vector<double>, kModelChannels> replay_residuals(const ReducedModel& q, const Recording& rec,
@@ -80,16 +91,47 @@ std::pair<double, double> worst_evidence(const std::vector<std::vector<double>>&
   return {hi * per_sample_to_K_min, lo * per_sample_to_K_min};
 }
 
-DetectorCalibration calibrate_detector(const ReducedModel& q, const ReducedModelF64& model,
-                                       const std::vector<const Recording*>& recordings,
+namespace {
+// The candidate drift (multiples of `step` up to one beyond `worst`) whose threshold the design
+// rise reaches soonest; threshold(d) from the worst evidence of `res` on that side. `upper`
+// selects the side. Ties go to the larger drift (more forgiving of what was not recorded).
+struct SideChoice {
+  double drift = 0, worst_K_min = 0, minutes = -1;
+};
+SideChoice choose_drift(const std::vector<std::vector<double>>& res, const std::vector<double>& design_rise, double worst,
+                        bool upper, const DetectorRule& rule, uint16_t dt_ms) {
+  SideChoice best;
+  best.drift = rule.drift_floor_K;
+  const int n = std::max(1, static_cast<int>(std::ceil(worst / rule.drift_floor_K)) + 1);
+  for (int i = 1; i <= n; ++i) {
+    const double d = rule.drift_floor_K * i;
+    const auto [hi, lo] = worst_evidence(res, upper ? d : 1e9, upper ? 1e9 : d, dt_ms);
+    const double worst_ev = upper ? hi : lo;
+    const double warn = rule.margin * worst_ev + rule.evidence_floor_K_min;
+    const double threshold = upper ? rule.alarm_factor * warn : warn;
+    const double t = minutes_to_evidence(design_rise, d, threshold, dt_ms);
+    const bool better = t >= 0 && (best.minutes < 0 || t <= best.minutes);
+    if (better || (best.minutes < 0 && i == 1)) {
+      best.drift = d;
+      best.worst_K_min = worst_ev;
+      best.minutes = t;
+    }
+  }
+  return best;
+}
+}  // namespace
+
+DetectorCalibration calibrate_detector(const ScheduledReduction& red, const std::vector<const Recording*>& recordings,
                                        const std::array<std::string, kModelChannels>& columns, const DetectorRule& rule) {
   if (recordings.empty()) throw std::invalid_argument("detector calibration: no recordings");
-  if (!(rule.margin >= 1.0) || !(rule.alarm_factor > 1.0) || !(rule.drift_fraction >= 0 && rule.drift_fraction <= 1) ||
-      !(rule.drift_floor_K > 0) || !(rule.evidence_floor_K_min > 0))
-    throw std::invalid_argument("detector calibration: need margin >= 1, alarm factor > 1, 0 <= drift fraction <= 1, floors > 0");
+  if (!(rule.margin >= 1.0) || !(rule.alarm_factor > 1.0) || !(rule.drift_floor_K > 0) || !(rule.evidence_floor_K_min > 0))
+    throw std::invalid_argument("detector calibration: need margin >= 1, alarm factor > 1, drift step > 0, evidence floor > 0");
+  if (!red.quantize_status.ok()) throw std::invalid_argument("detector calibration: the reduction did not quantize");
+  const ReducedModel& q = red.quantized;
+  const uint16_t dt_ms = q.schedule.dt_ms;
   DetectorCalibration out;
   out.recordings = recordings.size();
-  out.rule = rule.describe();
+  out.rule = rule.describe(red.design_fault);
   std::array<std::vector<std::vector<double>>, kModelChannels> res;
   for (const Recording* rec : recordings) {
     auto r = replay_residuals(q, *rec, columns);
@@ -98,8 +140,13 @@ DetectorCalibration calibrate_detector(const ReducedModel& q, const ReducedModel
   for (int j = 0; j < kModelChannels; ++j) {
     const auto c = static_cast<std::size_t>(j);
     ChannelCalibration& cc = out.channels[c];
-    cc.detector = model.detector[j];
+    cc.detector = red.model.detector[j];
     cc.column = columns[c];
+    std::size_t recorded = 0;
+    for (const auto& s : res[c]) recorded += s.size();
+    if (recorded == 0) continue;
+    cc.diagnosed = true;
+    if (rule.include_duty_cycle && !red.duty.residual_K[c].empty()) res[c].push_back(red.duty.residual_K[c]);
     for (const auto& s : res[c]) {
       cc.samples += s.size();
       for (double v : s) {
@@ -107,19 +154,19 @@ DetectorCalibration calibrate_detector(const ReducedModel& q, const ReducedModel
         cc.worst_below_K = std::max(cc.worst_below_K, -v);
       }
     }
-    if (cc.samples == 0) continue;
-    cc.diagnosed = true;
     cc.worst_residual_K = std::max(cc.worst_above_K, cc.worst_below_K);
-    const double drift = std::max(rule.drift_floor_K, rule.drift_fraction * cc.worst_above_K);
-    const double low_drift = std::max(rule.drift_floor_K, rule.drift_fraction * cc.worst_below_K);
-    const auto [hi, lo] = worst_evidence(res[c], drift, low_drift, q.schedule.dt_ms);
-    cc.worst_high_K_min = hi;
-    cc.worst_low_K_min = lo;
-    cc.detector.drift_K = drift;
-    cc.detector.low_drift_K = low_drift;
-    cc.detector.warn_evidence_K_min = rule.margin * hi + rule.evidence_floor_K_min;
+    const std::vector<double>& rise = red.design_fault.rise_K[c];
+    const SideChoice up = choose_drift(res[c], rise, cc.worst_above_K, true, rule, dt_ms);
+    const SideChoice down = choose_drift(res[c], rise, cc.worst_below_K, false, rule, dt_ms);
+    cc.worst_high_K_min = up.worst_K_min;
+    cc.worst_low_K_min = down.worst_K_min;
+    cc.design_alarm_min = up.minutes;
+    cc.design_low_warn_min = down.minutes;
+    cc.detector.drift_K = up.drift;
+    cc.detector.low_drift_K = down.drift;
+    cc.detector.warn_evidence_K_min = rule.margin * up.worst_K_min + rule.evidence_floor_K_min;
     cc.detector.alarm_evidence_K_min = rule.alarm_factor * cc.detector.warn_evidence_K_min;
-    cc.detector.low_warn_evidence_K_min = rule.margin * lo + rule.evidence_floor_K_min;
+    cc.detector.low_warn_evidence_K_min = rule.margin * down.worst_K_min + rule.evidence_floor_K_min;
   }
   return out;
 }

@@ -1,21 +1,23 @@
 #pragma once
 // The module's residual detector (common/diagnosis.hpp: per channel two one-sided CUSUMs of the
-// residual measured - predicted) calibrated from recordings of normal running, by a stated rule:
+// residual measured - predicted, each with its drift) calibrated by a stated rule:
 //
-//   1. The module's model (fixed point, exactly as flashed) is replayed over every recording,
-//      started from its first row as after a boot; per channel E+ and E- = the worst residual
-//      above and below the model.
-//   2. drift = max(drift_floor, drift_fraction x E+), lower drift the same of E-: a residual
-//      within the drift never accumulates, so the model's long-lasting small errors are forgiven
-//      (the two signs separately: a model can err more on one side).
-//   3. With those drifts the evidence is replayed too; H+ and H- = its worst upper and lower value.
-//   4. WARN = margin x H+ + floor, ALARM = alarm_factor x WARN, lower WARN = margin x H- + floor
-//      (K min): nothing recorded in normal running comes within `margin` of a WARN.
-// The recordings must be normal running (no fault) and should contain what production does:
-// warm-ups, stops, speed changes; a margin below 1 or recordings that miss a kind of transient
-// give false alarms. The same replay checks hand-set thresholds (refuse_below_own_error).
+//   1. Residuals of normal running: the module's model (fixed point, exactly as flashed) replayed
+//      over every recording, started from its first row as after a boot; and the same model
+//      against the fitted network itself over the reduction's duty cycle (restarts after 15, 30
+//      and 60-minute stops, speed steps, a drifting ambient: host/thermal/reduce.hpp DutyCycle),
+//      the transients production has and identification recordings may lack.
+//   2. For each candidate drift d (multiples of drift_floor up to the worst residual on that side):
+//      H(d) = the worst evidence over those residuals; WARN(d) = margin x H(d) + floor (K min),
+//      ALARM(d) = alarm_factor x WARN(d). Nothing of normal running comes within `margin` of WARN.
+//   3. The upper drift is the candidate whose ALARM a design fault reaches soonest: the rise the
+//      fitted network shows at the channel's node for design_heat_w more heat there (reduce.hpp
+//      FaultSignature). The lower drift likewise for the same rise below the model and its WARN.
+// The recordings must be normal running (no fault). A margin below 1, or recordings and a duty
+// cycle without a kind of transient production has, give false alarms.
 #include "model_reference.hpp"
 #include "recording.hpp"
+#include "reduce.hpp"
 
 #include "common/model_blob.hpp"
 
@@ -26,23 +28,25 @@
 namespace btsm::thermal {
 
 struct DetectorRule {
-  double drift_fraction = 0.75;       // 1, drift = this x the worst |residual|
-  double drift_floor_K = 0.05;        // K, smallest drift (sensor noise, Kalman lag)
-  double margin = 1.5;                // 1, WARN = margin x the worst upper evidence + floor
+  double drift_floor_K = 0.05;        // K, the smallest drift and the step of the candidates
+  double margin = 1.5;                // 1, WARN = margin x the worst evidence + floor
   double alarm_factor = 2.0;          // 1, ALARM = this x WARN
-  double evidence_floor_K_min = 0.5;  // K min, added to every threshold
-  std::string describe() const;
+  double evidence_floor_K_min = 0.5;  // K min, added to every WARN threshold
+  bool include_duty_cycle = true;     // also the model's error against the network over the duty cycle
+  std::string describe(const FaultSignature& design) const;
 };
 
 struct ChannelCalibration {
   bool diagnosed = false;             // the channel has a model of its own and a recorded column
   std::string column;                 // recording column replayed
-  std::size_t samples = 0;            // residuals used
+  std::size_t samples = 0;            // residuals used (recordings and duty cycle)
   double worst_residual_K = 0;        // max |residual|
-  double worst_above_K = 0;           // E+, measured above the model
-  double worst_below_K = 0;           // E-, measured below the model
-  double worst_high_K_min = 0;        // H+ with the chosen drift
-  double worst_low_K_min = 0;         // H-
+  double worst_above_K = 0;           // measured above the model
+  double worst_below_K = 0;           // measured below the model
+  double worst_high_K_min = 0;        // upper evidence with the chosen drift
+  double worst_low_K_min = 0;         // lower evidence with the chosen lower drift
+  double design_alarm_min = -1;       // the design fault reaches ALARM after this (< 0: not within 2 h)
+  double design_low_warn_min = -1;    // its mirror reaches the lower WARN after this
   ChannelDetector detector;           // the calibrated parameters (abs limit and rise kept)
 };
 
@@ -63,10 +67,14 @@ std::array<std::vector<double>, kModelChannels> replay_residuals(const ReducedMo
 std::pair<double, double> worst_evidence(const std::vector<std::vector<double>>& residuals, double drift_K,
                                          double low_drift_K, uint16_t dt_ms);
 
-// The rule above. `model` supplies the abs limit and rise limit to keep (per channel); throws
-// std::invalid_argument naming the recording and column when a mapped column is missing.
-DetectorCalibration calibrate_detector(const ReducedModel& q, const ReducedModelF64& model,
-                                       const std::vector<const Recording*>& recordings,
+// Minutes until the upper evidence of `rise` (K per step of dt_ms) exceeds `threshold_K_min`
+// with drift `drift_K`; < 0 when it does not within the series.
+double minutes_to_evidence(const std::vector<double>& rise, double drift_K, double threshold_K_min, uint16_t dt_ms);
+
+// The rule above for the reduction `red` (its quantized model, detector limits to keep, duty cycle
+// and design fault). Throws std::invalid_argument naming the recording and column when a mapped
+// column is missing, or for a rule out of range.
+DetectorCalibration calibrate_detector(const ScheduledReduction& red, const std::vector<const Recording*>& recordings,
                                        const std::array<std::string, kModelChannels>& columns, const DetectorRule& rule);
 
 // Writes the calibrated detectors into `model` (diagnosed channels only).

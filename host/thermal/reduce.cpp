@@ -10,6 +10,8 @@
 #include <Eigen/Eigenvalues>
 #include <Eigen/LU>
 
+#include <fmt/core.h>
+
 #include <algorithm>
 #include <cmath>
 #include <stdexcept>
@@ -383,6 +385,93 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     for (int ch = 0; ch < 5; ++ch) {
       dev.double_vs_full_max_K = std::max(dev.double_vs_full_max_K, dev.double_vs_full_K[static_cast<std::size_t>(ch)]);
       dev.quantized_vs_full_max_K = std::max(dev.quantized_vs_full_max_K, dev.quantized_vs_full_K[static_cast<std::size_t>(ch)]);
+    }
+  }
+  // The duty cycle: the module model (fixed point) against the network, as a plant would run.
+  if (out.quantize_status.ok()) {
+    const double top = o.duty_max_rpm > 0 ? o.duty_max_rpm : o.speeds_rpm.back();
+    // The breakpoint speeds up to the top, the midpoints between them (the module interpolates
+    // there) and the top speed itself when it is none of those.
+    std::vector<double> speeds;
+    for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
+      if (o.speeds_rpm[i] <= top + 0.5) speeds.push_back(o.speeds_rpm[i]);
+      if (i + 1 < o.speeds_rpm.size()) {
+        const double mid = 0.5 * (o.speeds_rpm[i] + o.speeds_rpm[i + 1]);
+        if (mid <= top + 0.5) speeds.push_back(mid);
+      }
+    }
+    if (speeds.empty() || std::abs(speeds.back() - top) > 0.5) speeds.push_back(top);
+    std::vector<std::pair<double, double>> prof;  // (speed, seconds)
+    for (double sp : speeds)
+      for (const auto& seg : std::vector<std::pair<double, double>>{{sp, 7200}, {0, 900}, {sp, 3600}, {0, 1800}, {sp, 3600},
+                                                                    {0, 3600}, {sp, 3600}})
+        prof.push_back(seg);
+    for (auto it = speeds.rbegin(); it != speeds.rend(); ++it) prof.emplace_back(*it, 3600.0);
+    for (double sp : speeds) prof.emplace_back(sp, 3600.0);
+    // Restarts at another speed than before the stop (the bearings' fast modes start from a
+    // state the same-speed restarts never show): each speed, stop 30 min, the mirrored speed.
+    const std::size_t ns = speeds.size();
+    for (std::size_t i = 0; i < ns; ++i) {
+      prof.emplace_back(speeds[i], 3600.0);
+      prof.emplace_back(0.0, 1800.0);
+      prof.emplace_back(speeds[ns - 1 - i], 3600.0);
+    }
+    // A night: 8 h stopped, then the top speed and the lowest, 2 h each.
+    prof.emplace_back(0.0, 8 * 3600.0);
+    prof.emplace_back(speeds.back(), 7200.0);
+    prof.emplace_back(speeds.front(), 7200.0);
+    double total = 0;
+    for (const auto& seg : prof) total += seg.second;
+    out.duty.hours = total / 3600;
+    out.duty.profile = fmt::format("from cold, at each breakpoint speed and midpoint up to {:.0f} rpm: 2 h, stop 15 min, 1 h, "
+                                   "stop 30 min, 1 h, stop 60 min, 1 h; then 1 h steps down and up through those speeds; "
+                                   "restarts after 30 min at the mirrored speed (lowest <-> top); 8 h stopped, then top and "
+                                   "lowest speed 2 h each; ambient {:.0f} +- 1 degC (period 8 h); {:.0f} h",
+                                   top, o.test_ambient_c, total / 3600);
+    Simulator full(net, params);
+    full.reset(Eigen::VectorXd::Constant(net.node_count(), o.test_ambient_c));
+    ReducedModelState st;
+    init_at_ambient(st, static_cast<int32_t>(std::lround(o.test_ambient_c * 1000.0)));
+    double t = 0;
+    for (const auto& seg : prof) {
+      const long steps = std::lround(seg.second / dt);
+      for (long k = 0; k < steps; ++k, t += dt) {
+        const double amb = o.test_ambient_c + std::sin(2 * M_PI * t / (8 * 3600.0));
+        int32_t pq[5];
+        step(out.quantized, st, static_cast<uint16_t>(seg.first), static_cast<int32_t>(std::lround(amb * 1000)), pq);
+        for (int ch = 0; ch < 5; ++ch) {
+          const auto c = static_cast<std::size_t>(ch);
+          const int nd = o.channel_node[c];
+          if (nd < 0) continue;
+          const double r = full.node_temp_c()[nd] - pq[ch] / 1000.0;
+          out.duty.residual_K[c].push_back(r);
+          out.duty.max_abs_K[c] = std::max(out.duty.max_abs_K[c], std::abs(r));
+        }
+        full.step(dt, seg.first, amb);
+      }
+    }
+  }
+  // The design fault: design_heat_w more at each channel's node, from the steady state at the
+  // middle breakpoint speed, for 2 h.
+  {
+    const double sp = o.speeds_rpm[o.speeds_rpm.size() / 2];
+    out.design_fault.heat_w = o.design_heat_w;
+    out.design_fault.speed_rpm = sp;
+    for (int ch = 0; ch < 5; ++ch) {
+      const auto c = static_cast<std::size_t>(ch);
+      const int nd = o.channel_node[c];
+      if (nd < 0) continue;
+      // The network is linear: the fault's rise over the fault-free response is the extra heat
+      // through the step matrices of that speed alone (no sources, no ambient).
+      Simulator sim(net, params);
+      const StepMatrices& sm = sim.matrices(sp, dt);
+      Eigen::VectorXd extra = Eigen::VectorXd::Zero(net.node_count());
+      extra[nd] = o.design_heat_w;
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(net.node_count());
+      for (int k = 0; k < static_cast<int>(7200 / dt); ++k) {
+        x = sm.Phi * x + sm.Gamma * extra;
+        out.design_fault.rise_K[c].push_back(x[nd]);
+      }
     }
   }
   return out;

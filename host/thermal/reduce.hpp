@@ -73,6 +73,8 @@ struct ReduceOptions {
   std::array<double, kModelEarlyStopPhases> stop_phase_end_s{{600.0, 2400.0}};  // s, 0 = phase unused
   ChannelDetector detector;                       // every diagnosed channel (calibrate_detector() refines)
   double test_ambient_c = 25.0;                   // degC, deviation test profile
+  double duty_max_rpm = 0;                        // rpm, highest speed of the duty cycle (0 = the highest breakpoint)
+  double design_heat_w = 10.0;                    // W, the extra heat the detector is designed to catch soonest
 };
 
 // A channel's first-order model in physical terms (what `reduce` prints and the JSON holds).
@@ -94,6 +96,27 @@ struct DeviationSummary {
   std::string profile;                    // description
 };
 
+// The module model against the network over a generic duty cycle -- from cold, at each breakpoint
+// speed and midpoint up to duty_max_rpm (and that speed): 2 h, then stops of 15, 30 and 60 min each
+// followed by 1 h running again; steps down and up through those speeds (1 h each); restarts after
+// a 30-minute stop at another speed (lowest <-> top); an 8 h stop followed by the top and the
+// lowest speed; the ambient drifting by +-1 K (period 8 h) -- the transients the module meets in
+// production that identification recordings may lack. The detector calibration covers them.
+struct DutyCycle {
+  std::string profile;                            // description
+  double hours = 0;
+  std::array<std::vector<double>, 5> residual_K;  // per step: network - module model
+  std::array<double, 5> max_abs_K{};              // per channel
+};
+
+// Per channel, the network's response of its node to design_heat_w more at that node (at the
+// middle breakpoint speed, from its steady state): the residual such a fault leaves, per step, 2 h.
+struct FaultSignature {
+  double heat_w = 0;
+  double speed_rpm = 0;
+  std::array<std::vector<double>, 5> rise_K;
+};
+
 struct ScheduledReduction {
   std::vector<SpeedReduction> speeds;     // one per operating breakpoint
   SpeedReduction cooling;                 // cooling mode, stop state as input
@@ -103,6 +126,8 @@ struct ScheduledReduction {
   ModelCheck quantize_status{};
   std::vector<uint8_t> blob;              // kReducedModelBlobSize bytes (empty if quantisation failed)
   DeviationSummary deviation;
+  DutyCycle duty;
+  FaultSignature design_fault;
 };
 
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& opts);
