@@ -161,7 +161,7 @@ TEST(FlashModel, VersionOneBlobIsRefusedNamingItsVersion) {
   EXPECT_NE(why.find("reduce"), std::string::npos) << why;
   Rig rig;
   try {
-    flash_model(rig.session, v1, dev_key());
+    flash_model(rig.session, v1, test::fake_module_key());
     FAIL() << "a version-1 blob was flashed";
   } catch (const std::runtime_error& e) {
     EXPECT_NE(std::string(e.what()).find("version 1"), std::string::npos) << e.what();
