@@ -167,6 +167,13 @@ TEST(SwappedProbes, TheModuleDiagnosesTheRightNode) {
   EXPECT_NE(c.log[0].find("ch1 = T1 front_bearing"), std::string::npos) << c.log[0];
   EXPECT_NE(c.log[0].find("ch3 = T3 rear_bearing"), std::string::npos) << c.log[0];
   EXPECT_NE(c.log[1].find("ch3: model rear_bearing, module rear_bearing"), std::string::npos) << c.log[1];
+  // `info` shows the flashed model's map against the module's roles, without a conflict.
+  const Result info = h.btsm("info --port " + o.pty_path);
+  ASSERT_EQ(info.code, 0) << info.err;
+  EXPECT_NE(info.out.find("model channel map:"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("ch1: model front_bearing, module front_bearing"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("ch3: model rear_bearing, module rear_bearing"), std::string::npos) << info.out;
+  EXPECT_EQ(info.out.find("CONFLICT"), std::string::npos) << info.out;
   // The labels' map (ch1 = rear bearing) is refused before anything is sent.
   Result r = h.btsm("reduce " + h.path + "/model.json --speeds 4000,6000,8000 --channels rear_bearing,housing,front_bearing,ambient,shaft "
                     "--force --out " + h.path + "/wrong.json --blob " + h.path + "/wrong.bin");
