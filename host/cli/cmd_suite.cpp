@@ -90,7 +90,7 @@ void register_suite_commands(CLI::App& app) {
       "RMSE before -> after, the share meeting the goal, false claims on data without an effect.\n"
       "  btsm effect-suite --out suite/                 # full set (README table)\n"
       "  btsm effect-suite --set reduced --out s/       # the ctest subset");
-  cmd->add_option("--set", a->set, "full (every family x --per-family) or reduced (4 fixed cases, short procedure)")
+  cmd->add_option("--set", a->set, "full (every family x --per-family) or reduced (9 fixed cases, short procedure)")
       ->check(CLI::IsMember({"full", "reduced"}))
       ->capture_default_str();
   cmd->add_option("--out", a->out, "output folder: cases/<id>/ (recordings, truth.json, residual.json), results.csv/json, table.md")
