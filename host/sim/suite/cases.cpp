@@ -327,20 +327,24 @@ std::vector<SuiteCase> make_cases(const SuiteOptions& opts) {
       {"sensor_lag", "lag"},                  {"sensor_drift", "offset drift"},
       {"ambient_dynamics", "air lag"},        {"second_boundary", "coolant"},
       {"event_conductance", "cover open"},    {"latent_mass", "missing mass"}};
-  for (const auto& [family, variant] : variants)
-    for (int i = 0; i < opts.per_family; ++i) {
+  // In rounds (the first case of every variant, clean and distractor kind, then the second, ...), so
+  // a suite stopped part-way has covered every family as evenly as it could.
+  const std::vector<std::string> quiet = {"clean", "ambient drift", "coolant column without effect",
+                                          "event column without effect"};
+  for (int i = 0; i < opts.per_family; ++i) {
+    for (const auto& [family, variant] : variants) {
       const std::string id = fmt::format("{}_{}_{:02d}", family, slug(variant), i + 1);
       SuiteCase c = effect_case(family, variant, seed_of(id), ProcedureSize::Full);
       c.id = id;
       keep(c);
     }
-  for (const std::string v : {"clean", "ambient drift", "coolant column without effect", "event column without effect"})
-    for (int i = 0; i < opts.per_family; ++i) {
+    for (const std::string& v : quiet) {
       const std::string id = fmt::format("{}_{}_{:02d}", v == "clean" ? "clean" : "distractor", slug(v), i + 1);
       SuiteCase c = quiet_case(v, seed_of(id), ProcedureSize::Full);
       c.id = id;
       keep(c);
     }
+  }
   return cases;
 }
 
