@@ -1,18 +1,28 @@
 // Per-channel thermal diagnosis: NORMAL / WARN / ALARM / SENSOR_FAULT with persistence,
-// hysteresis, a latched ALARM, and an overall state.
+// hysteresis, a latched ALARM, and an overall state; and the evidence of a persistent residual
+// the model checks rest on.
 //
-// Inputs per channel and sample: measured temperature (mK), model prediction (mK or kDiagNoValue
-// when there is no model), rate of rise (mK/min or kDiagNoValue; RiseRate below computes it), and
-// the channel's fault flag (ADC error, rail, RTD out of range ...).
+// Evidence (ResidualEvidence below): the residual r = measured - predicted is accumulated per
+// model step as two one-sided CUSUM statistics (Page 1954), in mK x samples,
+//   high' = min(cap, max(0, high + r - drift)),   low' = min(cap, max(0, low - r - low_drift)).
+// A residual within +-drift drains them; a persistent excess piles up at (r - drift) per sample,
+// so a small lasting excess heat is flagged after a time that shrinks as it grows, and a short
+// transient of the model (a stop, a speed change) is forgiven. `high` grows on heat the model
+// does not expect (a bearing fault), `low` on a probe colder than its model (a probe losing
+// contact). cap = 2 x the ALARM threshold keeps the time to drain after a fault bounded.
 //
-// Conditions evaluated on each sample (residual = measured - predicted):
-//   alarm_cond  |residual| > alarm_band  OR  measured > abs_limit  OR  rise > max_rise (if > 0)
-//   warn_cond   |residual| > warn_band   (or alarm_cond)
-//   alarm_clear |residual| <= alarm_band*(1-h) AND measured <= abs_limit - abs_hysteresis AND
+// Inputs per channel and sample: measured temperature (mK), the channel's evidence (kDiagNoValue
+// when there is no prediction), rate of rise (mK/min or kDiagNoValue; RiseRate below computes it),
+// and the channel's fault flag (ADC error, rail, RTD out of range ...).
+//
+// Conditions evaluated on each sample:
+//   alarm_cond  high > alarm_evidence  OR  measured > abs_limit  OR  rise > max_rise (if > 0)
+//   warn_cond   high > warn_evidence  OR  low > low_warn_evidence (if > 0)  (or alarm_cond)
+//   alarm_clear high <= alarm_evidence*(1-h) AND measured <= abs_limit - abs_hysteresis AND
 //               rise <= max_rise*(1-h)                           (h = hysteresis_permille / 1000)
-//   normal      alarm_clear AND |residual| <= warn_band*(1-h)      ("back to normal")
+//   normal      alarm_clear AND high <= warn_evidence*(1-h) AND low <= low_warn_evidence*(1-h)
 // Between the entry threshold and the (lower) exit threshold the state does not change: that is
-// the hysteresis band that stops a residual hovering at a threshold from toggling the state.
+// the hysteresis band that stops a value hovering at a threshold from toggling the state.
 //
 //                         warn_cond x N                    alarm_cond x N
 //            +--------+ ------------------> +------+ --------------------------+
@@ -37,7 +47,7 @@
 //   Mf = fault_clear_samples  consecutive samples without the fault flag to leave SENSOR_FAULT
 //   ack = acknowledge(): an ALARM whose condition is still present stays latched but is marked
 //         acknowledged and then leaves as soon as alarm_clear holds (to WARN if |residual| is still
-//         above the warn exit threshold, else NORMAL); an acknowledged alarm does not re-latch until
+//         above its warn exit threshold, else NORMAL); an acknowledged alarm does not re-latch until
 //         alarm_cond persists N samples again.
 // A latched ALARM survives a sensor fault: when the fault clears the channel returns to ALARM.
 //
@@ -95,10 +105,52 @@ inline uint8_t diag_severity(DiagState s) {
 inline DiagState diag_worst(DiagState a, DiagState b) { return diag_severity(b) > diag_severity(a) ? b : a; }
 
 struct DiagChannelLimits {
-  uint16_t warn_band_mK = 1500;         // |residual| entry threshold for WARN
-  uint16_t alarm_band_mK = 4000;        // |residual| entry threshold for ALARM
+  int32_t warn_evidence = 12000;        // upper evidence entry threshold for WARN, mK x samples
+  int32_t alarm_evidence = 24000;       // upper evidence entry threshold for ALARM, mK x samples
+  int32_t low_warn_evidence = 12000;    // lower evidence entry threshold for WARN; 0 = off
   int32_t abs_limit_mK = 80000;         // absolute temperature limit, degC * 1000
   uint16_t max_rise_mK_per_min = 3000;  // 0 = rate check disabled
+};
+
+// The two CUSUM statistics of one channel (see the header), kept in 24 bits each (they are never
+// negative and capped below 2^24: 6 bytes per channel of the ATmega328P's 2 KB instead of 8).
+class ResidualEvidence {
+ public:
+  static constexpr int32_t kMax = 16777215L;  // 2^24 - 1, mK x samples
+
+  int32_t high() const { return get(high_); }  // mK x samples
+  int32_t low() const { return get(low_); }
+  void reset() {
+    set(high_, 0);
+    set(low_, 0);
+  }
+  // One model step with residual r (mK). |r| is clamped to 2^22 mK and the cap to kMax, so no
+  // sum leaves int32.
+  void add(int32_t residual_mK, uint16_t drift_mK, uint16_t low_drift_mK, int32_t cap) {
+    const int32_t limit = 4194304L;
+    const int32_t r = residual_mK > limit ? limit : (residual_mK < -limit ? -limit : residual_mK);
+    const int32_t c = cap > kMax ? kMax : cap;
+    set(high_, accumulate(get(high_), r - drift_mK, c));
+    set(low_, accumulate(get(low_), -r - low_drift_mK, c));
+  }
+
+ private:
+  static int32_t accumulate(int32_t s, int32_t v, int32_t cap) {
+    s += v;
+    return s < 0 ? 0 : (s > cap ? cap : s);
+  }
+  static int32_t get(const uint8_t* b) {
+    return static_cast<int32_t>(static_cast<uint32_t>(b[0]) | (static_cast<uint32_t>(b[1]) << 8) |
+                                (static_cast<uint32_t>(b[2]) << 16));
+  }
+  static void set(uint8_t* b, int32_t v) {
+    const uint32_t u = static_cast<uint32_t>(v);
+    b[0] = static_cast<uint8_t>(u);
+    b[1] = static_cast<uint8_t>(u >> 8);
+    b[2] = static_cast<uint8_t>(u >> 16);
+  }
+  uint8_t high_[3] = {0, 0, 0};
+  uint8_t low_[3] = {0, 0, 0};
 };
 
 struct DiagTiming {
@@ -112,7 +164,8 @@ struct DiagTiming {
 
 struct DiagInput {
   int32_t measured_mK = kDiagNoValue;      // filtered temperature, degC * 1000
-  int32_t predicted_mK = kDiagNoValue;     // model prediction or kDiagNoValue
+  int32_t evidence_high = kDiagNoValue;    // ResidualEvidence::high(), or kDiagNoValue without a prediction
+  int32_t evidence_low = kDiagNoValue;     // ResidualEvidence::low()
   int32_t rise_mK_per_min = kDiagNoValue;  // or kDiagNoValue (not yet known)
   bool fault = false;                      // channel fault flag for this sample
 };
@@ -225,10 +278,12 @@ class DiagChannel {
 
   static uint8_t sat_inc(uint8_t v) { return v == 0xFF ? v : static_cast<uint8_t>(v + 1); }
 
-  // x * (1000 - h) / 1000 for the exit thresholds, in 32 bits.
+  // x * (1000 - h) / 1000 for the exit thresholds (x >= 0), in 32 bits: split at 1000 so the
+  // evidence thresholds (up to 2^24) cannot overflow the product.
   static int32_t exit_threshold(int32_t entry, uint16_t h_permille) {
     const int32_t keep = 1000 - (h_permille > 1000 ? 1000 : static_cast<int32_t>(h_permille));
-    return static_cast<int32_t>((static_cast<int32_t>(entry) * keep) / 1000);
+    const int32_t thousands = entry / 1000;
+    return thousands * keep + ((entry - thousands * 1000) * keep) / 1000;
   }
 
   // alarm_clear and normal are only computed with need_exit (false otherwise).
@@ -236,16 +291,12 @@ class DiagChannel {
                              bool need_exit) {
     Conditions c;
     c.reasons = 0;
-    int32_t abs_res = 0;
-    const bool have_res = in.predicted_mK != kDiagNoValue;
-    if (have_res) {
-      const int32_t r = in.measured_mK - in.predicted_mK;
-      abs_res = r < 0 ? -r : r;
-    } else {
-      c.reasons |= kReasonNoPrediction;
-    }
-    const bool res_alarm = have_res && abs_res > static_cast<int32_t>(lim.alarm_band_mK);
-    const bool res_warn = have_res && abs_res > static_cast<int32_t>(lim.warn_band_mK);
+    const bool have_res = in.evidence_high != kDiagNoValue;
+    if (!have_res) c.reasons |= kReasonNoPrediction;
+    const bool low_on = lim.low_warn_evidence > 0;
+    const bool res_alarm = have_res && in.evidence_high > lim.alarm_evidence;
+    const bool res_warn =
+        have_res && (in.evidence_high > lim.warn_evidence || (low_on && in.evidence_low > lim.low_warn_evidence));
     const bool abs_alarm = in.measured_mK > lim.abs_limit_mK;
     const bool have_rise = lim.max_rise_mK_per_min != 0 && in.rise_mK_per_min != kDiagNoValue;
     const bool rise_alarm = have_rise && in.rise_mK_per_min > static_cast<int32_t>(lim.max_rise_mK_per_min);
@@ -259,12 +310,13 @@ class DiagChannel {
     c.normal = false;
     if (!need_exit) return c;
     const int32_t h = t.hysteresis_permille;
-    c.alarm_clear = (!have_res || abs_res <= exit_threshold(lim.alarm_band_mK, static_cast<uint16_t>(h))) &&
+    c.alarm_clear = (!have_res || in.evidence_high <= exit_threshold(lim.alarm_evidence, static_cast<uint16_t>(h))) &&
                     in.measured_mK <= lim.abs_limit_mK - static_cast<int32_t>(t.abs_hysteresis_mK) &&
                     (!have_rise || in.rise_mK_per_min <= exit_threshold(lim.max_rise_mK_per_min,
                                                                          static_cast<uint16_t>(h)));
     c.normal = c.alarm_clear &&
-               (!have_res || abs_res <= exit_threshold(lim.warn_band_mK, static_cast<uint16_t>(h)));
+               (!have_res || (in.evidence_high <= exit_threshold(lim.warn_evidence, static_cast<uint16_t>(h)) &&
+                              (!low_on || in.evidence_low <= exit_threshold(lim.low_warn_evidence, static_cast<uint16_t>(h)))));
     return c;
   }
 

@@ -11,7 +11,8 @@
 #include <stdint.h>
 
 #include "common/kalman.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
+#include "common/model_step.hpp"
 #include "common/rtd.hpp"
 #include "common/sha256.hpp"
 #include "common/wire_frame.hpp"
@@ -56,7 +57,6 @@ class App {
     config_record::decode(rec, config_);  // keeps defaults when missing or corrupt
     load_and_bump_counters();
     store_.boot(model_);  // model_ = ModelRuntime (schedule + limits), coefficients stay in EEPROM
-    model_state_.x_q20 = 0;
     model_initialised_ = false;
     board_.tach.set_pulses_per_rev(config_.tach_pulses_per_rev);
     apply_config();
@@ -82,10 +82,6 @@ class App {
     // breakpoint from EEPROM) run here, at the shallowest call depth, not inside the frame handler
     // or the sweep processing.
     if (commit_pending_ && !store_.busy() && !out_pending_) run_commit();
-    if (model_init_pending_) {
-      model_init_pending_ = false;
-      if (store_.init_state(model_, model_state_, speed_rpm_, init_ambient_mK_, temp_mK_)) have_prediction_ = false;
-    }
     receive(now);
 
     const uint32_t acq_budget = acq_.poll(now);
@@ -264,20 +260,22 @@ class App {
       model_last_step_ms_ = now;
       return;
     }
-    const int32_t ambient = model_.ambient_channel < kChannels ? temp_mK_[model_.ambient_channel] : wire::kMissing;
+    const uint8_t amb_ch = model_.ambient_channel;
+    const int32_t ambient = amb_ch < kChannels ? temp_mK_[amb_ch] : wire::kMissing;
     if (!model_initialised_) {
-      // Least-squares start from the measured temperatures, done by poll() after this sweep.
-      model_initialised_ = ambient != wire::kMissing;
-      model_init_pending_ = model_initialised_;
-      init_ambient_mK_ = ambient;
+      // Every channel's model starts from its measured temperature (common init_from_measurement).
+      model_initialised_ = store_.init_state(model_, model_state_, ambient, temp_mK_);
       model_last_step_ms_ = now;
     }
     // The poles are discretised for the blob's dt: step once per elapsed dt (catch up at most
-    // 64 steps, e.g. after a long sample period), then report the latest prediction.
+    // 64 steps, e.g. after a long sample period), then report the latest prediction. Each step's
+    // residuals go into the evidence.
     uint8_t steps = 0;
     bool stepped = false;
-    while (static_cast<uint32_t>(now - model_last_step_ms_) >= model_.dt_ms && steps < 64) {
+    while (model_initialised_ && static_cast<uint32_t>(now - model_last_step_ms_) >= model_.dt_ms && steps < 64) {
       store_.step_model(model_, model_state_, speed_rpm_, ambient, predicted_mK_);
+      drop_mismatched_channels();
+      diagnosis_.accumulate(model_.limits, temp_mK_, predicted_mK_);
       model_last_step_ms_ += model_.dt_ms;
       ++steps;
       stepped = true;
@@ -287,8 +285,24 @@ class App {
       // First sweep after (re)start: report the prediction of the current state without stepping.
       ReducedModelState probe = model_state_;
       store_.step_model(model_, probe, speed_rpm_, ambient, predicted_mK_);
+      drop_mismatched_channels();
     }
-    have_prediction_ = true;
+    have_prediction_ = model_initialised_;
+  }
+
+  // The model's channel map against the module's channel roles: a channel whose configured role
+  // is not the node its model was reduced for gets no prediction (and so no model checks, only
+  // its absolute and rise limits), and none does when the ambient channel is not the ambient.
+  // The host refuses such a model before flashing (flash-model); this covers roles changed later.
+  void drop_mismatched_channels() {
+    const ModelRuntime& s = model_;
+    const bool ambient_ok = s.ambient_channel >= kChannels ||
+                            config_.roles[s.ambient_channel] == static_cast<uint8_t>(wire::ChannelRole::Ambient);
+    for (uint8_t j = 0; j < kChannels; ++j) {
+      const uint8_t r = s.role[j];
+      if (!ambient_ok || (r != kModelRoleUnchecked && r != kModelRoleNotModelled && r != config_.roles[j]))
+        predicted_mK_[j] = wire::kMissing;
+    }
   }
 
   // ---- output -------------------------------------------------------------------------------
@@ -367,7 +381,7 @@ class App {
       store_.activate_committed(model_);
       model_initialised_ = false;
       have_prediction_ = false;
-      model_state_.x_q20 = 0;
+      diagnosis_.reset_evidence();
     }
     if (ack_after_write_) send_deferred_ack();
   }
@@ -586,10 +600,8 @@ class App {
   uint8_t deferred_seq_ = 0;
   uint8_t deferred_type_ = 0;
   uint8_t reset_cause_ = 0;
-  int32_t init_ambient_mK_ = 0;
   bool out_pending_ = false;
   bool commit_pending_ = false;
-  bool model_init_pending_ = false;
   bool sample_pending_ = false;
   bool sweep_in_progress_ = false;
   bool ack_after_write_ = false;

@@ -1,14 +1,15 @@
-// Firmware glue around common/diagnosis.hpp: per-channel limits from the active reduced model
-// (or the common defaults without a model), rate of rise from a short sliding window, and the
-// channel roles (ambient and spare channels are measured but get no thermal limits: only their
-// sensor faults are reported).
+// Firmware glue around common/diagnosis.hpp: per-channel limits and detector parameters from the
+// active reduced model (or the common defaults without a model), the residual evidence of every
+// channel (accumulated per model step), rate of rise from a short sliding window, and the channel
+// roles (ambient and spare channels are measured but get no thermal limits: only their sensor
+// faults are reported).
 #ifndef BTSM_FIRMWARE_DIAGNOSIS_STAGE_HPP
 #define BTSM_FIRMWARE_DIAGNOSIS_STAGE_HPP
 
 #include <stdint.h>
 
 #include "common/diagnosis.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "common/wire_messages.hpp"
 #include "common/platform.hpp"
 
@@ -23,6 +24,25 @@ class DiagnosisStage {
   // latch: an ALARM is held until ACK_ALARM (then it clears as soon as its condition is gone);
   // without latch it clears after 60 consecutive normal samples (5 min at 5 s).
   void configure(bool latch) { timing_.alarm_clear_samples = latch ? 0 : 60; }
+
+  // One model step's residuals into the evidence: per channel measured - predicted, with the
+  // channel's drift from the model's limits; a channel without a reading or a prediction starts
+  // its evidence afresh (a fault or a new model says nothing about what came before).
+  BTSM_NOINLINE void accumulate(const ChannelLimits* limits, const int32_t* temp_mK, const int32_t* predicted_mK) {
+    for (uint8_t j = 0; j < kChannels; ++j) {
+      const ChannelLimits& l = limits[j];
+      if (temp_mK[j] == wire::kMissing || predicted_mK[j] == wire::kMissing || l.alarm_evidence == 0) {
+        evidence_[j].reset();
+        continue;
+      }
+      // cap = 2 x the ALARM threshold (common/diagnosis.hpp).
+      evidence_[j].add(temp_mK[j] - predicted_mK[j], l.drift_mK, l.low_drift_mK, evidence_cap_mk_samples(l.alarm_evidence));
+    }
+  }
+  void reset_evidence() {
+    for (uint8_t j = 0; j < kChannels; ++j) evidence_[j].reset();
+  }
+  const ResidualEvidence& evidence(uint8_t j) const { return evidence_[j]; }
 
   // limits: per-channel limits of the active model, or null without a model (common defaults).
   // Channels are updated one at a time with one DiagInput/DiagChannelLimits on the stack: an
@@ -83,15 +103,19 @@ class DiagnosisStage {
     DiagChannelLimits lim;
     if (sw.limits != 0) {
       const ChannelLimits& l = sw.limits[j];
-      lim.warn_band_mK = l.warn_band_mK;
-      lim.alarm_band_mK = l.alarm_band_mK;
+      lim.warn_evidence = evidence_mk_samples(l.warn_evidence);
+      lim.alarm_evidence = evidence_mk_samples(l.alarm_evidence);
+      lim.low_warn_evidence = evidence_mk_samples(l.low_warn_evidence);
       lim.abs_limit_mK = l.abs_limit_mK;
       lim.max_rise_mK_per_min = l.max_rise_mK_per_min;
     }
     DiagInput in;
     in.fault = fault;
     in.measured_mK = t_mK;
-    in.predicted_mK = sw.limits != 0 ? sw.predicted_mK[j] : kDiagNoValue;
+    if (sw.limits != 0 && sw.predicted_mK[j] != wire::kMissing && sw.limits[j].alarm_evidence != 0) {
+      in.evidence_high = evidence_[j].high();
+      in.evidence_low = evidence_[j].low();
+    }
     in.rise_mK_per_min = kDiagNoValue;
     int32_t oldest;
     if (fault || t_mK == wire::kMissing) {
@@ -126,6 +150,7 @@ class DiagnosisStage {
   };
 
   DiagChannel ch_[kChannels];
+  ResidualEvidence evidence_[kChannels];
   DiagTiming timing_;
   Rise rise_[kChannels];
   RiseRate<kRiseWindow>::Scale scale_ = {0, 0, 0};

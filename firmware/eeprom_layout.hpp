@@ -16,7 +16,7 @@
 
 #include <stdint.h>
 
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 
 namespace btsm {
 namespace eeprom_layout {

@@ -4,7 +4,7 @@
 // RAM is the constraint: a 464-byte blob buffer does not fit next to everything else on the
 // ATmega328P, so chunks are streamed straight into the inactive slot while HMAC and CRC run
 // incrementally, and blobs are parsed from EEPROM field by field (the common decode() wants the
-// whole blob in RAM). The parsed model is checked with the common validate().
+// whole blob in RAM), with the common validation parts (common/model_blob.hpp).
 //
 // Upload: begin() keeps the nonce and the announced length and CRC and writes nothing.
 // authenticate() checks MODEL_AUTH's tag HMAC-SHA256(device key, nonce || context) (context =
@@ -24,23 +24,26 @@
 #include "common/byte_order.hpp"
 #include "common/crc.hpp"
 #include "common/hmac.hpp"
-#include "common/reduced_model.hpp"
-#include "common/wire_messages.hpp"
+#include "common/model_blob.hpp"
+#include "common/model_step.hpp"
 #include "common/platform.hpp"
+#include "common/wire_messages.hpp"
 #include "firmware/eeprom_layout.hpp"
 #include "firmware/eeprom_writer.hpp"
 
 namespace btsm {
 
-// What the firmware keeps of the active model in RAM (72 bytes instead of the 456-byte
-// ReducedModel): the speed schedule and the diagnosis limits. Breakpoint coefficients stay in
-// EEPROM; ModelStore caches the ones interpolated for the current speed.
+// What the firmware keeps of the active model in RAM (94 bytes instead of the 428-byte
+// ReducedModel): the schedule without its speeds, the channel map and the detector limits.
+// Coefficients and speeds stay in EEPROM (read on a speed change); ModelStore caches the
+// coefficients for the current speed and stop phase.
 struct ModelRuntime {
   uint8_t n_breakpoints;
-  uint8_t ambient_channel;
+  uint8_t ambient_channel;  // 0..4 or kModelAmbientNone
   uint8_t enabled_mask;
   uint16_t dt_ms;
-  uint16_t speed_rpm[kModelMaxBreakpoints];
+  uint16_t stop_end_s[kModelEarlyStopPhases];
+  uint8_t role[kModelChannels];
   ChannelLimits limits[kModelChannels];
 };
 
@@ -180,13 +183,14 @@ class ModelStore {
     if (busy()) return Nack::Busy;
     session_ = kNoSession;  // single use, whatever happens next
     // Each step is its own out-of-line function so their buffers are never on the stack together
-    // with the 456-byte model of check_slot() (2 KB of SRAM on the ATmega328P).
+    // (2 KB of SRAM on the ATmega328P).
     const Nack stored = verify_tag_and_bytes(tag, detail);
     if (stored != Nack::Ok) return stored;
     const ModelCheck check = check_slot(target_slot_);
     if (!check.ok()) {
       detail = check.detail();
-      // The wire's BLOB_VERSION covers "magic/version not understood".
+      // The wire's BLOB_VERSION covers "magic/version not understood"; the detail names the
+      // version found (ModelCheck::channel).
       if (check.status == ModelStatus::kBadMagic) return Nack::BlobVersion;
       switch (model_status_class(check.status)) {
         case ModelStatusClass::kCrc: return Nack::BlobCrc;
@@ -212,68 +216,92 @@ class ModelStore {
 
   void abort_session() { session_ = kNoSession; }
 
-  // One model step (common/reduced_model.hpp definition): writes predicted temperatures (mK) and
-  // advances the state. Out of line, as init_state: inlined into poll() (and so into main) their
-  // locals would deepen the stack under everything else.
+  // One model step (common/model_step.hpp): writes predicted temperatures (mK) and advances the
+  // state. Out of line, as init_state: inlined into poll() (and so into main) their locals would
+  // deepen the stack under everything else.
   BTSM_NOINLINE void step_model(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
-                  int32_t* predicted_mK) {
-    step_with(coefficients(rt, speed_rpm), speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, st, ambient_mK,
-              predicted_mK);
+                                int32_t* predicted_mK) {
+    // The stop phase only matters while stopped (coefficients_at ignores it when running).
+    const uint8_t phase = speed_rpm > 0 ? kModelEarlyStopPhases : stop_phase(rt.stop_end_s, st.stopped_ms);
+    const ModelBreakpoint& p = coefficients(rt, speed_rpm, phase);
+    step_with(p, speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, rt.dt_ms, st, ambient_mK, predicted_mK);
   }
 
-  // Least-squares initial state from measured temperatures (common init_from_measurement):
-  // called once after boot or a new model.
-  BTSM_NOINLINE bool init_state(const ModelRuntime& rt, ReducedModelState& st, uint16_t speed_rpm, int32_t ambient_mK,
-                  const int32_t* measured_mK) {
+  // Initial state from measured temperatures (common init_from_measurement): called once after
+  // boot or a new model.
+  BTSM_NOINLINE bool init_state(const ModelRuntime& rt, ReducedModelState& st, int32_t ambient_mK,
+                                const int32_t* measured_mK) {
     if (!active()) return false;
-    return init_from_measurement_with(coefficients(rt, speed_rpm), speed_rpm > 0, rt.ambient_channel,
-                                      rt.enabled_mask, st, ambient_mK, measured_mK);
+    return init_from_measurement(rt.ambient_channel, rt.enabled_mask, st, ambient_mK, measured_mK);
   }
 
   // Parses and validates the blob of `slot` from EEPROM into `out` (same checks and order as the
-  // common decode(): CRC, magic, version, then validate()'s schedule, breakpoints, limits). The
-  // breakpoints are checked one at a time as they are read and not kept (they stay in EEPROM):
-  // ~130 bytes of stack instead of a 456-byte ReducedModel. `out` is modified even on failure.
+  // common decode(): CRC, magic, version, reserved bytes, then validate()'s schedule, breakpoints,
+  // stop poles, limits). The coefficients are checked 40 bytes at a time as they are read and not
+  // kept (they stay in EEPROM): one 40-byte scratch buffer instead of a 428-byte ReducedModel on
+  // the stack. `out` is modified even on failure.
   BTSM_NOINLINE ModelCheck load_slot(uint8_t slot, ModelRuntime& out) const {
+    static_assert(BTSM_LITTLE_ENDIAN, "coefficients are read as little-endian int32");
     const uint16_t base = eeprom_layout::blob_addr(slot);
     uint32_t crc = 0;
+    bool reserved_zero = true;
     for (uint16_t i = 0; i < kBlobOffCrc; ++i) {
       const uint8_t b = storage_.read(static_cast<uint16_t>(base + i));
       crc = crc32(&b, 1, crc);
+      if (i >= kBlobOffReserved && b != 0) reserved_zero = false;
     }
-    uint8_t buf[kBlobBreakpointSize];
+    // One scratch area for the header, each breakpoint, the stop poles and each channel's limits.
+    union {
+      uint8_t bytes[kBlobBreakpointSize];
+      ModelBreakpoint bp;
+      int32_t stop_a[kModelEarlyStopPhases][kModelChannels];
+    } scratch;
+    static_assert(sizeof scratch.stop_a == kBlobOffRoles - kBlobOffStopPoles, "stop poles fit the scratch area");
+    static_assert(sizeof scratch.bytes >= kBlobOffBreakpoints, "the header fits the scratch area");
+    uint8_t* buf = scratch.bytes;
     read_bytes(static_cast<uint16_t>(base + kBlobOffCrc), buf, 4);
     if (crc != get_le32(buf)) return model_check(ModelStatus::kBadCrc);
-    read_bytes(base, buf, 10);
+    read_bytes(base, buf, kBlobOffBreakpoints);
     if (get_le32(buf + kBlobOffMagic) != kReducedModelMagic) return model_check(ModelStatus::kBadMagic);
-    if (buf[kBlobOffVersion] != kReducedModelVersion) return model_check(ModelStatus::kBadVersion);
-    out.n_breakpoints = buf[kBlobOffBreakpointCount];
-    out.ambient_channel = buf[kBlobOffAmbientChannel];
-    out.enabled_mask = buf[kBlobOffEnabledMask];
-    out.dt_ms = get_le16(buf + kBlobOffDtMs);
-    for (uint8_t i = 0; i < kModelMaxBreakpoints; ++i) {
-      read_bytes(static_cast<uint16_t>(base + kBlobOffSpeeds + 2 * i), buf, 2);
-      out.speed_rpm[i] = get_le16(buf);
-    }
-    ModelCheck c = validate_schedule(out.n_breakpoints, out.dt_ms, out.enabled_mask, out.ambient_channel, out.speed_rpm);
+    if (buf[kBlobOffVersion] != kReducedModelVersion) return model_check(ModelStatus::kBadVersion, 0xFF, buf[kBlobOffVersion]);
+    if (!reserved_zero) return model_check(ModelStatus::kUnusedNotZero);
+    ModelSchedule s;
+    decode_schedule(buf, s);
+    read_bytes(static_cast<uint16_t>(base + kBlobOffRoles), s.role, kModelChannels);
+    ModelCheck c = validate_schedule(s);
     for (uint8_t i = 0; i < kModelMaxBreakpoints && c.ok(); ++i) {
-      ModelBreakpoint bp;
       read_bytes(static_cast<uint16_t>(base + kBlobOffBreakpoints + kBlobBreakpointSize * i), buf, kBlobBreakpointSize);
-      decode_breakpoint(buf, bp);
-      c = validate_breakpoint(bp, i, out.n_breakpoints);
+      c = validate_breakpoint(scratch.bp, i, s);
     }
     if (!c.ok()) return c;
+    read_bytes(static_cast<uint16_t>(base + kBlobOffStopPoles), buf, sizeof scratch.stop_a);
+    c = validate_stop_poles(scratch.stop_a, s);
+    if (!c.ok()) return c;
     for (uint8_t j = 0; j < kModelChannels; ++j) {
-      read_bytes(static_cast<uint16_t>(base + kBlobOffWarnBands + 2 * j), buf, 2);
-      out.limits[j].warn_band_mK = get_le16(buf);
-      read_bytes(static_cast<uint16_t>(base + kBlobOffAlarmBands + 2 * j), buf, 2);
-      out.limits[j].alarm_band_mK = get_le16(buf);
+      // Channel j's fields (each field is an array over the channels).
+      read_bytes(static_cast<uint16_t>(base + kBlobOffDrift + 2 * j), buf, 2);
+      out.limits[j].drift_mK = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffLowDrift + 2 * j), buf, 2);
+      out.limits[j].low_drift_mK = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffWarnEvidence + 2 * j), buf, 2);
+      out.limits[j].warn_evidence = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffAlarmEvidence + 2 * j), buf, 2);
+      out.limits[j].alarm_evidence = get_le16(buf);
+      read_bytes(static_cast<uint16_t>(base + kBlobOffLowWarnEvidence + 2 * j), buf, 2);
+      out.limits[j].low_warn_evidence = get_le16(buf);
       read_bytes(static_cast<uint16_t>(base + kBlobOffAbsLimits + 4 * j), buf, 4);
       out.limits[j].abs_limit_mK = static_cast<int32_t>(get_le32(buf));
       read_bytes(static_cast<uint16_t>(base + kBlobOffMaxRise + 2 * j), buf, 2);
       out.limits[j].max_rise_mK_per_min = get_le16(buf);
     }
-    return validate_limits(out.limits, out.enabled_mask, out.ambient_channel);
+    c = validate_limits(out.limits, s);
+    out.n_breakpoints = s.n_breakpoints;
+    out.ambient_channel = s.ambient_channel;
+    out.enabled_mask = s.enabled_mask;
+    out.dt_ms = s.dt_ms;
+    for (uint8_t k = 0; k < kModelEarlyStopPhases; ++k) out.stop_end_s[k] = s.stop_end_s[k];
+    for (uint8_t j = 0; j < kModelChannels; ++j) out.role[j] = s.role[j];
+    return c;
   }
 
  private:
@@ -361,37 +389,45 @@ class ModelStore {
     return load_slot(slot, tmp);
   }
 
-  // The active model's coefficients interpolated at speed_rpm. They are kept until the speed
-  // changes (it rarely does between sweeps: the tach's dead-band keeps jitter from looking like a
-  // change) or another model is loaded. (The initial state used to parse and validate the whole
-  // blob again, with a 456-byte model on the stack: the deepest stack of the firmware.)
-  const ModelBreakpoint& coefficients(const ModelRuntime& rt, uint16_t speed_rpm) {
-    if (speed_rpm != coeff_speed_rpm_) refresh_coefficients(rt, speed_rpm);
+  // The active model's coefficients at speed_rpm and stop phase `phase`. They are kept until the
+  // speed or the phase changes (the speed rarely does between sweeps: the tach's dead-band keeps
+  // jitter from looking like a change) or another model is loaded.
+  const ModelBreakpoint& coefficients(const ModelRuntime& rt, uint16_t speed_rpm, uint8_t phase) {
+    if (speed_rpm != coeff_speed_rpm_ || phase != coeff_phase_) refresh_coefficients(rt, speed_rpm, phase);
     return coeff_;
   }
 
   // Reads breakpoint lo straight into the cache and, inside a segment, interpolates towards
   // breakpoint hi member by member as its bytes come from EEPROM (common interpolate() does the
-  // same per member: the same integers), without a second 48-byte buffer. Only the members the
-  // model step reads are interpolated: a, b, and c, d of the channels that are enabled and not the
-  // ambient one (step_with and init_from_measurement_with skip the others, which keep lo's value).
-  BTSM_NOINLINE void refresh_coefficients(const ModelRuntime& rt, uint16_t speed_rpm) {
-    static_assert(sizeof(ModelBreakpoint) == kBlobBreakpointSize && offsetof(ModelBreakpoint, c_q24) == 8 &&
-                      offsetof(ModelBreakpoint, d_q24) == 8 + 4 * kModelChannels,
-                  "ModelBreakpoint must be the blob's twelve little-endian int32 in member order");
-    static_assert(BTSM_LITTLE_ENDIAN, "breakpoints are read as little-endian int32");
-    const SpeedSegment seg = find_segment(rt.speed_rpm, rt.n_breakpoints, speed_rpm);
-    const uint16_t first = static_cast<uint16_t>(eeprom_layout::blob_addr(active_slot_) + kBlobOffBreakpoints);
+  // same per member: the same integers), without a second 40-byte buffer; in an early stop phase
+  // it reads that phase's poles instead. Only the channels with a model of their own are touched
+  // (step_with skips the others, which keep lo's value) -- as common coefficients_at().
+  BTSM_NOINLINE void refresh_coefficients(const ModelRuntime& rt, uint16_t speed_rpm, uint8_t phase) {
+    static_assert(sizeof(ModelBreakpoint) == kBlobBreakpointSize && sizeof(ChannelCoeffs) == kBlobChannelCoeffSize,
+                  "ModelBreakpoint must be the blob's ten little-endian int32 in member order");
+    static_assert(BTSM_LITTLE_ENDIAN, "coefficients are read as little-endian int32");
+    const uint16_t blob = eeprom_layout::blob_addr(active_slot_);
+    uint16_t speeds[kModelMaxBreakpoints];  // little-endian u16 in place (the static_assert above)
+    read_bytes(static_cast<uint16_t>(blob + kBlobOffSpeeds), reinterpret_cast<uint8_t*>(speeds), sizeof speeds);
+    const SpeedSegment seg = find_segment(speeds, rt.n_breakpoints, speed_rpm);
+    const uint16_t first = static_cast<uint16_t>(blob + kBlobOffBreakpoints);
     uint8_t* out = reinterpret_cast<uint8_t*>(&coeff_);
     read_bytes(static_cast<uint16_t>(first + kBlobBreakpointSize * seg.lo), out, kBlobBreakpointSize);
-    if (seg.frac_q16 != 0) {
-      // Bit k: member k is needed (0 a, 1 b, 2 + j c_j, 2 + kModelChannels + j d_j).
-      uint8_t channels = static_cast<uint8_t>(rt.enabled_mask & 0x1FU);
-      if (rt.ambient_channel < kModelChannels) channels = static_cast<uint8_t>(channels & ~(1U << rt.ambient_channel));
-      uint16_t needed = static_cast<uint16_t>(3U | (static_cast<uint16_t>(channels) << 2) |
-                                              (static_cast<uint16_t>(channels) << (2 + kModelChannels)));
+    // The channels with a model of their own (step_with skips the others).
+    uint8_t channels = static_cast<uint8_t>(rt.enabled_mask & 0x1FU);
+    if (rt.ambient_channel < kModelChannels) channels = static_cast<uint8_t>(channels & ~(1U << rt.ambient_channel));
+    if (!seg.running && phase < kModelEarlyStopPhases) {
+      // An early stop phase: its poles replace breakpoint 0's.
+      uint16_t a = static_cast<uint16_t>(blob + kBlobOffStopPoles + 4 * kModelChannels * phase);
+      for (uint8_t j = 0; j < kModelChannels; ++j, a += 4, out += kBlobChannelCoeffSize)
+        if ((channels >> j) & 1U) read_bytes(a, out, 4);
+    } else if (seg.frac_q16 != 0) {
+      // Bit k: member k is needed (2 j: a of channel j, 2 j + 1: its b).
+      uint16_t needed = 0;
+      for (uint8_t j = 0; j < kModelChannels; ++j)
+        if ((channels >> j) & 1U) needed = static_cast<uint16_t>(needed | (3U << (2 * j)));
       uint16_t hi = static_cast<uint16_t>(first + kBlobBreakpointSize * seg.hi);
-      for (uint8_t k = 0; k < 12; ++k, hi += 4, out += 4, needed >>= 1) {
+      for (uint8_t k = 0; k < 2 * kModelChannels; ++k, hi += 4, out += 4, needed >>= 1) {
         if ((needed & 1U) == 0) continue;
         union {
           int32_t v;
@@ -405,6 +441,7 @@ class ModelStore {
       }
     }
     coeff_speed_rpm_ = speed_rpm;
+    coeff_phase_ = phase;
   }
 
   // Validates the slot and copies the schedule and limits (false: slot invalid, rt untouched).
@@ -419,8 +456,9 @@ class ModelStore {
   Storage& storage_;
   EepromWriter<Storage, 58> writer_;
   HmacSha256 mac_;
-  ModelBreakpoint coeff_;  // interpolated at coeff_speed_rpm_ (step_model)
+  ModelBreakpoint coeff_;  // at coeff_speed_rpm_ and stop phase coeff_phase_ (step_model)
   uint16_t coeff_speed_rpm_ = kNoCoefficients;
+  uint8_t coeff_phase_ = 0;
   uint8_t nonce_[kNonceSize];  // of the open session, kept from begin() until authenticate()
   uint32_t expected_crc_ = 0;
   uint32_t running_crc_ = 0;

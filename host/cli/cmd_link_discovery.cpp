@@ -1,7 +1,9 @@
 // btsm list | scan | info: finding a module and asking who it is.
 #include "cmd_link_support.hpp"
+#include "common/model_blob.hpp"
 #include "host/link/ble_scan.hpp"
 #include "host/link/device_keys.hpp"
+#include "host/link/model_flash.hpp"
 #include "host/link/usb_devices.hpp"
 
 #include <fmt/core.h>
@@ -134,10 +136,36 @@ struct InfoArgs {
   bool json = false;
 };
 
+// The active model's channel map against the module's roles (the blob's role bytes, read back).
+std::vector<std::string> model_channel_map(Session& session, const ModuleIdentity& id, json& j) {
+  std::vector<std::string> lines;
+  if (id.info.model_state != static_cast<uint8_t>(wire::ModelState::Active)) return lines;
+  const ActiveModelMap am = read_active_model_map(session);
+  j["model_format_version"] = am.version;
+  if (am.version != kReducedModelVersion) {
+    lines.push_back(fmt::format("the active model has format version {}, not {}: no channel map", am.version,
+                                kReducedModelVersion));
+    return lines;
+  }
+  const ChannelMapCheck mc = check_channel_map(am.roles, id.roles.role);
+  json cm = json::array();
+  for (const auto& ch : mc.channels) {
+    const char* model = ch.model_role == kModelRoleUnchecked ? "unchecked" : wire::channel_role_name(ch.model_role);
+    const char* module = wire::channel_role_name(ch.module_role);
+    cm.push_back({{"model", model ? model : "?"}, {"module", module ? module : "?"}, {"verdict", ch.verdict}});
+    lines.push_back(ch.text);
+  }
+  j["model_channel_map"] = cm;
+  for (const auto& w : mc.conflicts) lines.push_back("CONFLICT: " + w);
+  for (const auto& w : mc.warnings) lines.push_back("warning: " + w);
+  return lines;
+}
+
 void run_info(const InfoArgs& a) {
   auto conn = connect(a.link);
   const ModuleIdentity id = identify(*conn.session);
-  const json j = info_json(id);
+  json j = info_json(id);
+  const std::vector<std::string> map_lines = model_channel_map(*conn.session, id, j);
   if (a.json) {
     print_json(j);
     return;
@@ -147,6 +175,8 @@ void run_info(const InfoArgs& a) {
   std::cout << fmt::format("model: {} (crc {}, seq {})  uptime {} s\n", j["model_state"].get<std::string>(),
                            j["model_crc"].get<std::string>(), id.info.model_seq, id.info.uptime_s);
   std::cout << "channels: " << id.roles.describe() << "\n";
+  if (!map_lines.empty()) std::cout << "model channel map:\n";
+  for (const auto& l : map_lines) std::cout << "  " << l << "\n";
   std::cout << "counters:";
   for (const auto& [k, v] : j["counters"].items()) std::cout << " " << k << "=" << v;
   std::cout << "\n";

@@ -2,6 +2,7 @@
 #include "cmd_link_support.hpp"
 #include "host/link/device_keys.hpp"
 #include "host/link/model_flash.hpp"
+#include "host/link/recorder.hpp"
 
 #include <fmt/core.h>
 #include <unistd.h>
@@ -18,7 +19,7 @@ using namespace btsm::link;
 struct FlashModelArgs {
   LinkOptions link;
   std::string file, key_file;
-  bool json = false;
+  bool json = false, force = false;
 };
 
 // The signing key: from --key-file (named <device_id>.key, for this module) or the key store.
@@ -48,12 +49,33 @@ void print_flash_summary(const FlashModelArgs& a, const FlashSummary& s) {
                 {"verified", s.verified}});
 }
 
+// The blob's channel map against the module's roles: printed; a channel the module would check
+// against another node's model refuses the upload unless --force (nothing is sent).
+void check_map_before_flashing(const FlashModelArgs& a, Session& session, const std::vector<uint8_t>& blob) {
+  const ChannelRoles roles = read_channel_roles(session);
+  uint8_t model_roles[5];
+  if (!blob_channel_roles(blob, model_roles)) return;
+  const ChannelMapCheck mc = check_channel_map(model_roles, roles.role);
+  std::cerr << "flash-model: channel map (model -> module roles" << (roles.from_module ? "" : ", module roles are defaults")
+            << "):\n";
+  for (const auto& ch : mc.channels) std::cerr << "  " << ch.text << "\n";
+  for (const auto& w : mc.warnings) std::cerr << "flash-model: WARNING: " << w << "\n";
+  if (mc.ok()) return;
+  std::string all;
+  for (const auto& w : mc.conflicts) all += "\n  " + w;
+  if (!a.force)
+    throw CommandError(kExitFailure, "the model's channel map disagrees with the module's channel roles; nothing was sent:" +
+                                         all + "\n(--force flashes anyway)");
+  std::cerr << "flash-model: WARNING (forced): the channel map disagrees:" << all << "\n";
+}
+
 void run_flash_model(const FlashModelArgs& a) {
   const auto blob = load_model_blob(a.file);
   const std::string why = check_model_blob(blob);
   if (!why.empty()) throw CommandError(kExitUsage, a.file + ": " + why);
   auto conn = connect(a.link);
   const auto info = conn.session->get_info();
+  check_map_before_flashing(a, *conn.session, blob);
   const DeviceKey key = signing_key(a, info.device_id);
   const bool tty = ::isatty(STDERR_FILENO);
   FlashOptions fo;
@@ -80,11 +102,14 @@ void register_flash_model(CLI::App& app) {
       "store (`btsm keys path`) for the module's device id. The module keeps its previous model unless\n"
       "the commit is accepted; a refusal prints the module's reason (AUTH_FAILED = wrong key,\n"
       "BLOB_INVALID, ...). A link lost after MODEL_COMMIT was sent exits 3 and says what `btsm info`\n"
-      "shows if the new model is active. Bad input (not a blob, not hex, a bad key file) exits 2.");
+      "shows if the new model is active. Bad input (not a blob, not hex, a bad key file) exits 2.\n"
+      "The blob's channel map (the node each channel's model predicts) is compared with the module's channel\n"
+      "roles first: a channel the module would check against another node's model is refused unless --force.");
   add_link_options(*c, a->link);
   c->add_option("file", a->file, "model blob (.bin) or JSON with the blob")->required()->check(CLI::ExistingFile);
   c->add_option("--key-file", a->key_file, "use this key file instead of the key store (must be mode 0600)");
   c->add_flag("--json", a->json, "print the summary as JSON");
+  c->add_flag("--force", a->force, "flash even when the model's channel map disagrees with the module's channel roles");
   c->callback([a] { guarded([&] { run_flash_model(*a); }); });
 }
 

@@ -24,7 +24,7 @@ struct SuiteArgs {
   int per_family = 3, jobs = 1;
   unsigned seed = 2024;
   double timeout_s = 1800;
-  bool generate_only = false, score_only = false, list = false;
+  bool generate_only = false, score_only = false, list = false, reuse = false;
 };
 
 std::string self_path() {
@@ -57,6 +57,7 @@ void run_effect_suite(const SuiteArgs& a) {
   ro.timeout_s = a.timeout_s;
   ro.generate = !a.score_only;
   ro.run = !a.generate_only;
+  ro.reuse_answers = a.reuse;
   ro.progress = [](const std::string& s) { std::cerr << "effect-suite: " << s << std::endl; };
   su::SuiteReport rep;
   try {
@@ -90,7 +91,7 @@ void register_suite_commands(CLI::App& app) {
       "RMSE before -> after, the share meeting the goal, false claims on data without an effect.\n"
       "  btsm effect-suite --out suite/                 # full set (README table)\n"
       "  btsm effect-suite --set reduced --out s/       # the ctest subset");
-  cmd->add_option("--set", a->set, "full (every family x --per-family) or reduced (4 fixed cases, short procedure)")
+  cmd->add_option("--set", a->set, "full (every family x --per-family) or reduced (9 fixed cases, short procedure)")
       ->check(CLI::IsMember({"full", "reduced"}))
       ->capture_default_str();
   cmd->add_option("--out", a->out, "output folder: cases/<id>/ (recordings, truth.json, residual.json), results.csv/json, table.md")
@@ -107,6 +108,9 @@ void register_suite_commands(CLI::App& app) {
       ->allow_extra_args(false);
   cmd->add_flag("--generate-only", a->generate_only, "only write the recordings and truth.json");
   cmd->add_flag("--score-only", a->score_only, "reuse the recordings in --out, run and score only");
+  cmd->add_flag("--reuse", a->reuse,
+                "with --score-only: score a case's existing residual.json (newer than its recordings) instead of "
+                "running it again (resumes a suite stopped part-way)");
   cmd->add_flag("--list", a->list, "print the cases (id, kind, hidden effect) and exit");
   cmd->callback([a] { run_effect_suite(*a); });
 }

@@ -2,6 +2,7 @@
 #include "cli_support.hpp"
 #include "commands.hpp"
 
+#include "host/thermal/detector_calibration.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
 #include "host/thermal/reduce.hpp"
@@ -189,12 +190,103 @@ void run_validate(const ValidateArgs& a) {
 
 // ------------------------------------------------------------------------------------- reduce
 struct ReduceArgs {
-  std::string model, speeds, out, blob, channels = "1,2,3,ambient,none";
-  double dt = 5.0, warn = 1.0, alarm = 2.0, abs_limit = 70.0, max_rise = 5.0, cooling_ref = 0.0;
-  bool json_out = false;
+  std::string model, speeds, out, blob, channels, stop_phases = "600,2400";
+  std::vector<std::string> calibrate;
+  double dt = 5.0, cooling_ref = 0.0, design_heat_w = 10.0;
+  ChannelDetector detector;
+  DetectorRule rule;
+  bool force = false, json_out = false;
 };
 
-void run_reduce(const ReduceArgs& a) {
+std::vector<double> number_list(const std::string& text, const std::string& option) {
+  std::vector<double> v;
+  std::stringstream ss(text);
+  std::string tok;
+  while (std::getline(ss, tok, ',')) {
+    try {
+      std::size_t used = 0;
+      v.push_back(std::stod(tok, &used));
+      if (used != tok.size()) throw std::invalid_argument(tok);
+    } catch (const std::exception&) {
+      throw CommandError(kExitUsage, option + ": '" + tok + "' is not a number");
+    }
+  }
+  return v;
+}
+
+// The channel map: from the fit's "channel_map" (what the recordings' channel roles and columns
+// said), or `--channels` (five entries: node name, 'ambient' or 'none'), or -- for a model JSON
+// without a map -- columns T1..T5 as channels 1..5 with the ambient on channel 4. Returns a line
+// per channel for the console.
+std::vector<std::string> channel_map(const Network& net, const json& model_json, const std::string& spec, ReduceOptions& o) {
+  std::vector<std::string> recorded_role(5);
+  o.ambient_channel = -1;
+  o.channel_node.fill(-1);
+  const bool have_map = model_json.contains("channel_map") && model_json.at("channel_map").is_array() &&
+                        !model_json.at("channel_map").empty();
+  if (have_map)
+    for (const auto& e : model_json.at("channel_map")) {
+      const int ch = e.value("channel", 0);
+      if (ch < 1 || ch > 5) throw CommandError(kExitUsage, "model JSON: channel_map entry with channel " + std::to_string(ch));
+      if (e.contains("module_role") && e.at("module_role").is_string()) recorded_role[static_cast<std::size_t>(ch - 1)] = e.at("module_role");
+    }
+  if (!spec.empty()) {
+    std::stringstream ss(spec);
+    std::string tok;
+    int ch = 0;
+    while (std::getline(ss, tok, ',')) {
+      if (ch >= 5) throw CommandError(kExitUsage, "--channels: at most 5 entries");
+      if (tok == "ambient") {
+        if (o.ambient_channel >= 0) throw CommandError(kExitUsage, "--channels: only one ambient channel");
+        o.ambient_channel = ch;
+      } else if (tok != "none") {
+        const int node = net.node_index(tok);
+        if (node < 0) {
+          std::string nodes;
+          for (const auto& n : net.nodes) nodes += " " + n.name;
+          throw CommandError(kExitUsage, "--channels: '" + tok + "' (channel " + std::to_string(ch + 1) +
+                                             ") is not a node of the model, 'ambient' or 'none'; nodes:" + nodes);
+        }
+        o.channel_node[static_cast<std::size_t>(ch)] = node;
+      }
+      ++ch;
+    }
+  } else if (have_map) {
+    for (const auto& e : model_json.at("channel_map")) {
+      const int ch = e.at("channel").get<int>() - 1;
+      if (!e.contains("node") || !e.at("node").is_string()) continue;
+      const std::string node = e.at("node");
+      if (node == "ambient") {
+        o.ambient_channel = ch;
+      } else {
+        const int n = net.node_index(node);
+        if (n < 0) throw CommandError(kExitUsage, "model JSON: channel_map names node '" + node + "', not in the network");
+        o.channel_node[static_cast<std::size_t>(ch)] = n;
+      }
+    }
+  } else {
+    std::cerr << "reduce: the model JSON has no channel map (fitted before btsm recorded one): channels 1..5 = columns "
+                 "T1..T5 as the network measures them, ambient on channel 4 -- check the lines below or say --channels\n";
+    for (const auto& m : net.measurements)
+      if (m.column.size() == 2 && m.column[0] == 'T' && m.column[1] >= '1' && m.column[1] <= '5')
+        o.channel_node[static_cast<std::size_t>(m.column[1] - '1')] = m.node;
+    if (o.channel_node[3] < 0) o.ambient_channel = 3;
+  }
+  std::vector<std::string> lines;
+  for (int ch = 0; ch < 5; ++ch) {
+    const auto c = static_cast<std::size_t>(ch);
+    const int nd = o.channel_node[c];
+    std::string what = nd >= 0 ? net.nodes[static_cast<std::size_t>(nd)].name : (ch == o.ambient_channel ? "ambient" : "(none)");
+    std::string line = fmt::format("ch{} = T{} {}", ch + 1, ch + 1, what);
+    if (!recorded_role[c].empty()) line += " (module role when recorded: " + recorded_role[c] + ")";
+    if (nd >= 0 && role_for_node(net.nodes[static_cast<std::size_t>(nd)].name) == kModelRoleUnchecked)
+      line += " (no module role has this name: the module cannot check the probe's place)";
+    lines.push_back(line);
+  }
+  return lines;
+}
+
+void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_detector) {
   FittedModel model;
   try {
     model = load_model(a.model);
@@ -203,91 +295,144 @@ void run_reduce(const ReduceArgs& a) {
   }
   const Network& net = model.network;
   ReduceOptions o;
-  {
-    std::stringstream ss(a.speeds);
-    std::string tok;
-    while (std::getline(ss, tok, ',')) {
-      try {
-        std::size_t used = 0;
-        o.speeds_rpm.push_back(std::stod(tok, &used));
-        if (used != tok.size()) throw std::invalid_argument(tok);
-      } catch (const std::exception&) {
-        throw CommandError(kExitUsage, "--speeds: bad speed '" + tok + "'");
-      }
-    }
-  }
-  {
-    // channel spec: five entries: measurement number (1-based, as in the network's measurements),
-    // a node name, "ambient" or "none"
-    std::stringstream ss(a.channels);
-    std::string tok;
-    int ch = 0;
-    o.ambient_channel = -1;
-    while (std::getline(ss, tok, ',')) {
-      if (ch >= kModelChannels)
-        throw CommandError(kExitUsage, "--channels: at most " + std::to_string(kModelChannels) + " entries");
-      int node = -1;
-      if (tok == "ambient") {
-        if (o.ambient_channel >= 0) throw CommandError(kExitUsage, "--channels: only one ambient channel");
-        o.ambient_channel = ch;
-      } else if (tok != "none") {
-        node = net.node_index(tok);
-        if (node < 0) {
-          try {
-            const int m = std::stoi(tok);
-            if (m < 1 || m > static_cast<int>(net.measurements.size())) throw std::out_of_range(tok);
-            node = net.measurements[static_cast<std::size_t>(m - 1)].node;
-          } catch (const std::exception&) {
-            throw CommandError(kExitUsage, "--channels: '" + tok + "' is not a measurement number, node name, 'ambient' or 'none'");
-          }
-        }
-      }
-      o.channel_node[static_cast<std::size_t>(ch++)] = node;
-    }
-    for (; ch < kModelChannels; ++ch) o.channel_node[static_cast<std::size_t>(ch)] = -1;
-  }
+  o.speeds_rpm = number_list(a.speeds, "--speeds");
+  const std::vector<std::string> map_lines = channel_map(net, model.json, a.channels, o);
+  const std::vector<double> ends = number_list(a.stop_phases, "--stop-phases");
+  if (ends.size() > kModelEarlyStopPhases) throw CommandError(kExitUsage, "--stop-phases: at most 2 phase ends");
+  o.stop_phase_end_s.fill(0.0);
+  for (std::size_t k = 0; k < ends.size(); ++k) o.stop_phase_end_s[k] = ends[k];
   o.dt_s = a.dt;
-  o.warn_K = a.warn;
-  o.alarm_K = a.alarm;
-  o.abs_limit_c = a.abs_limit;
-  o.max_rise_K_per_min = a.max_rise;
   o.cooling_reference_rpm = a.cooling_ref;
-  if (!(o.alarm_K > o.warn_K) || !(o.warn_K > 0)) throw CommandError(kExitUsage, "bands: need 0 < --warn < --alarm");
-  std::cerr << "reduce: " << o.speeds_rpm.size() << " speeds ...\n";
+  o.detector = a.detector;
+  o.design_heat_w = a.design_heat_w;
+  if (!(a.design_heat_w > 0)) throw CommandError(kExitUsage, "--design-heat must be > 0 W");
+  // The calibration recordings first: the duty cycle the detector covers runs up to their top speed.
+  std::vector<Recording> calib;
+  if (!a.calibrate.empty()) {
+    calib = read_all(a.calibrate);
+    double top = 0;
+    for (const auto& rec : calib)
+      for (double v : rec.speed_rpm) top = std::max(top, v);
+    o.duty_max_rpm = top;
+  }
+  const ChannelDetector& d = a.detector;
+  if (!a.calibrate.empty() && !explicit_detector.empty())
+    throw CommandError(kExitUsage, "--calibrate-bands sets " + explicit_detector.front() + " from the recordings: give one or the other");
+  if (!(d.drift_K > 0) || !(d.low_drift_K > 0) || !(d.warn_evidence_K_min > 0) ||
+      !(d.alarm_evidence_K_min > d.warn_evidence_K_min) || d.low_warn_evidence_K_min < 0)
+    throw CommandError(kExitUsage,
+                       "detector: need --drift > 0, --low-drift > 0, 0 < --warn-evidence < --alarm-evidence, --low-warn-evidence >= 0");
+  std::cerr << "reduce: " << o.speeds_rpm.size() << " speeds, channel map:\n";
+  for (const auto& l : map_lines) std::cerr << "  " << l << "\n";
+  if (o.ambient_channel < 0)
+    std::cerr << "reduce: WARNING: no channel is the ambient: the module predicts relative to its ambient channel and "
+                 "would make no prediction with this model (say which channel with --channels ...,ambient,...)\n";
   ScheduledReduction r;
   try {
     r = build_scheduled_model(net, model.params, o);
   } catch (const std::invalid_argument& e) {
     throw CommandError(kExitUsage, e.what());
   }
+  if (!r.quantize_status.ok())
+    throw CommandError(kExitFailure, std::string("the model does not fit the module's blob: ") + model_status_name(r.quantize_status.status));
+  json calibration;
+  if (!a.calibrate.empty()) {
+    std::vector<const Recording*> ptrs;
+    for (const auto& rec : calib) ptrs.push_back(&rec);
+    std::array<std::string, kModelChannels> columns;
+    for (int ch = 0; ch < 5; ++ch)
+      if (o.channel_node[static_cast<std::size_t>(ch)] >= 0) columns[static_cast<std::size_t>(ch)] = "T" + std::to_string(ch + 1);
+    DetectorCalibration cal;
+    try {
+      cal = calibrate_detector(r, ptrs, columns, a.rule);
+    } catch (const std::invalid_argument& e) {
+      throw CommandError(kExitUsage, e.what());
+    }
+    apply_calibration(cal, r.model);
+    requantize(r);
+    if (!r.quantize_status.ok())
+      throw CommandError(kExitFailure, std::string("the calibrated detector does not fit the blob: ") + model_status_name(r.quantize_status.status));
+    std::cerr << "reduce: detector calibrated on " << cal.recordings << " recordings (" << cal.rule << "):\n";
+    calibration = {{"rule", cal.rule}, {"recordings", a.calibrate}, {"duty_cycle", r.duty.profile}, {"channels", json::array()}};
+    for (int ch = 0; ch < 5; ++ch) {
+      const ChannelCalibration& cc = cal.channels[static_cast<std::size_t>(ch)];
+      if (!cc.diagnosed) continue;
+      std::cerr << fmt::format("  ch{}: worst residual {:.2f} K above the model; drift {:.2f} K, worst evidence {:.2f} K min -> "
+                               "WARN {:.2f}, ALARM {:.2f} K min ({:g} W more: ALARM after {}); {:.2f} K below; drift {:.2f} K, "
+                               "worst {:.2f} -> WARN {:.2f} K min\n",
+                               ch + 1, cc.worst_above_K, cc.detector.drift_K, cc.worst_high_K_min, cc.detector.warn_evidence_K_min,
+                               cc.detector.alarm_evidence_K_min, r.design_fault.heat_w,
+                               cc.design_alarm_min < 0 ? std::string("not within 2 h") : fmt::format("{:.1f} min", cc.design_alarm_min),
+                               cc.worst_below_K, cc.detector.low_drift_K, cc.worst_low_K_min, cc.detector.low_warn_evidence_K_min);
+      calibration["channels"].push_back({{"channel", ch + 1}, {"column", cc.column}, {"samples", cc.samples},
+                                         {"worst_above_K", cc.worst_above_K}, {"worst_below_K", cc.worst_below_K},
+                                         {"worst_upper_evidence_K_min", cc.worst_high_K_min},
+                                         {"worst_lower_evidence_K_min", cc.worst_low_K_min},
+                                         {"design_fault_alarm_min", cc.design_alarm_min}});
+    }
+  } else {
+    // Hand-set thresholds: not below what the model's own error (against the full network, over
+    // the reduction profile) would accumulate, unless forced.
+    for (int ch = 0; ch < 5; ++ch) {
+      const auto& res = r.deviation.residual_K[static_cast<std::size_t>(ch)];
+      if (res.empty()) continue;
+      const auto [hi, lo] = worst_evidence({res}, d.drift_K, d.low_drift_K, r.model.dt_ms);
+      const bool low_bad = d.low_warn_evidence_K_min > 0 && lo >= d.low_warn_evidence_K_min;
+      if (hi < d.warn_evidence_K_min && !low_bad) continue;
+      const std::string msg = fmt::format(
+          "ch{}: the model's own error against the full network (max {:.2f} K over the reduction profile) accumulates "
+          "{:.2f} K min of evidence above and {:.2f} below the model with --drift {:.2f} / --low-drift {:.2f} K, at or over "
+          "--warn-evidence {:.2f} / --low-warn-evidence {:.2f} K min: a healthy spindle would WARN. Calibrate on recordings "
+          "of normal running (--calibrate-bands RECORDINGS...), raise the thresholds, or --force",
+          ch + 1, r.deviation.quantized_vs_full_K[static_cast<std::size_t>(ch)], hi, lo, d.drift_K, d.low_drift_K,
+          d.warn_evidence_K_min, d.low_warn_evidence_K_min);
+      if (!a.force) throw CommandError(kExitUsage, msg);
+      std::cerr << "reduce: WARNING (forced): " << msg << "\n";
+    }
+  }
   json j = reduction_to_json(net, r, o);
   j["model"] = a.model;
+  if (!calibration.is_null()) j["detector_calibration"] = calibration;
   save_json(a.out, j);
   std::cerr << "reduce: wrote " << a.out << "\n";
   if (!a.blob.empty()) {
-    if (r.blob.empty())
-      throw CommandError(kExitFailure, std::string("the scheduled model does not fit the firmware blob: ") + model_status_name(r.quantize_status.status));
     std::ofstream f(a.blob, std::ios::binary);
     f.write(reinterpret_cast<const char*>(r.blob.data()), static_cast<std::streamsize>(r.blob.size()));
     if (!f) throw CommandError(kExitFailure, a.blob + ": write failed");
-    std::cerr << "reduce: wrote " << a.blob << " (" << r.blob.size() << " bytes)\n";
+    std::cerr << "reduce: wrote " << a.blob << " (" << r.blob.size() << " bytes, format version " << int(kReducedModelVersion) << ")\n";
   }
   if (a.json_out) {
     print_json(j);
-  } else {
-    for (const auto& s : r.speeds) {
-      std::cout << fmt::format("{:.0f} rpm: HSV", s.speed_rpm);
-      for (Eigen::Index i = 0; i < s.hsv.size(); ++i) std::cout << fmt::format(" {:.5g}", s.hsv[i]);
-      std::cout << fmt::format("; pole BT {:.4g} /s, DC-matched {:.4g} /s; slowest full pole {:.4g} /s\n", s.bt.pole, s.dc.pole,
-                               s.poles.maxCoeff());
-    }
-    std::cout << fmt::format("cooling: DC-matched pole {:.4g} /s\n", r.cooling.dc.pole);
-    std::cout << fmt::format("deviation over {:.0f} h test profile: quantized vs full {:.4f} K, double reduced vs full {:.4f} K, "
-                             "quantized vs double {:.6f} K\n",
-                             r.deviation.profile_hours, r.deviation.quantized_vs_full_max_K, r.deviation.double_vs_full_max_K,
-                             r.deviation.quantized_vs_double_max_K);
-    std::cout << "SCTC time constants are not model time constants; only the sum of their rates is exact\n";
+    return;
   }
+  for (const auto& s : r.speeds) {
+    std::cout << fmt::format("{:.0f} rpm: HSV", s.speed_rpm);
+    for (Eigen::Index i = 0; i < s.hsv.size(); ++i) std::cout << fmt::format(" {:.5g}", s.hsv[i]);
+    std::cout << "; time constants of the network (min):";
+    for (Eigen::Index i = s.poles.size() - 1; i >= 0; --i) std::cout << fmt::format(" {:.1f}", -1.0 / s.poles[i] / 60.0);
+    std::cout << "\n";
+  }
+  for (const auto& l : map_lines) std::cout << l << "\n";
+  for (int ch = 0; ch < 5; ++ch) {
+    const auto& cr = r.channels[static_cast<std::size_t>(ch)];
+    if (cr.node < 0) continue;
+    std::cout << fmt::format("ch{} {}: time constant (min) running", ch + 1, net.nodes[static_cast<std::size_t>(cr.node)].name);
+    for (std::size_t i = 1; i < cr.tau_s.size(); ++i) std::cout << fmt::format(" {:.0f}", cr.tau_s[i] / 60);
+    std::cout << " at " << a.speeds << " rpm; stopped";
+    for (int k = 0; k < kModelEarlyStopPhases; ++k)
+      if (r.model.stop_end_s[k] != 0) std::cout << fmt::format(" {:.1f} (until {:.0f} min)", cr.stop_tau_s[static_cast<std::size_t>(k)] / 60, r.model.stop_end_s[k] / 60.0);
+    std::cout << fmt::format(" {:.0f} after; max error vs the full network {:.3f} K\n", cr.tau_s[0] / 60,
+                             r.deviation.quantized_vs_full_K[static_cast<std::size_t>(ch)]);
+    const ChannelDetector& cd = r.model.detector[ch];
+    std::cout << fmt::format("    detector: drift {:.2f} K, WARN {:.2f} K min, ALARM {:.2f} K min; colder: drift {:.2f} K, "
+                             "WARN {:.2f} K min; limit {:.1f} degC, rise {:.2f} K/min\n",
+                             cd.drift_K, cd.warn_evidence_K_min, cd.alarm_evidence_K_min, cd.low_drift_K,
+                             cd.low_warn_evidence_K_min, cd.abs_limit_c, cd.max_rise_K_per_min);
+  }
+  std::cout << fmt::format("deviation over the {:.0f} h reduction profile: module model vs full network {:.4f} K (worst channel), "
+                           "double reduction vs full {:.4f} K, fixed point vs double {:.6f} K\n",
+                           r.deviation.profile_hours, r.deviation.quantized_vs_full_max_K, r.deviation.double_vs_full_max_K,
+                           r.deviation.quantized_vs_double_max_K);
 }
 
 }  // namespace
@@ -339,26 +484,48 @@ void register_sysid_commands(CLI::App& app) {
   }
   {
     auto a = std::make_shared<ReduceArgs>();
-    auto* c = app.add_subcommand("reduce", "Reduce a fitted model to the firmware's speed-scheduled 1st-order model (+ blob)");
+    auto* c = app.add_subcommand("reduce", "Reduce a fitted model to the module's model: one first-order model per channel (+ blob)");
     c->footer(
-        "At each speed: Hankel singular values (inputs = heat sources in W, outputs = node rises), plain balanced\n"
-        "truncation and DC-matched (singular perturbation) 1st-order poles, SCTC time constants. The DC-matched models\n"
-        "become breakpoints (0 rpm = natural cooling + each speed) of the firmware model, quantized into the blob;\n"
-        "the deviation of the quantized model from the full model is measured over a test profile.\n"
-        "--channels: five entries for ch1..ch5: measurement number, node name, 'ambient' or 'none'.");
+        "Per diagnosed channel, at each speed the DC-matched first-order step response closest (max norm) to the\n"
+        "full network's node response, and while stopped poles scheduled on the time since the stop (--stop-phases);\n"
+        "the breakpoints (0 rpm + each speed) are quantized into the module's blob (format version 2). Printed: the\n"
+        "network's HSV and time constants per speed, the channel map, each channel's time constants in minutes and\n"
+        "its error against the full network over the reduction profile (stops and speed steps).\n"
+        "Channel map: from the model JSON (the recordings' channel roles and columns, as fit saw them); --channels\n"
+        "overrides it with five entries for ch1..ch5: a node name, 'ambient' or 'none'.\n"
+        "Detector (per channel, two one-sided CUSUMs of measured - predicted): --calibrate-bands RECORDINGS sets drift and\n"
+        "thresholds from the model's own residuals on recordings of normal running (rule printed); hand-set values\n"
+        "are refused when the model's own error would reach them, unless --force.\n"
+        "Example: btsm reduce model.json --speeds 4000,6000,8000 --calibrate-bands warmup_*.csv --out reduced.json --blob model.bin");
     c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(CLI::ExistingFile);
-    c->add_option("--speeds", a->speeds, "Operating breakpoints in rpm, ascending, e.g. 4000,6000,8000")->required();
+    c->add_option("--speeds", a->speeds, "Operating breakpoints in rpm, ascending, e.g. 4000,6000,8000 (at most 6)")->required();
     c->add_option("--out", a->out, "Reduced model JSON to write")->required();
-    c->add_option("--blob", a->blob, "Also write the firmware coefficient blob (binary)");
-    c->add_option("--dt", a->dt, "Firmware sample period in s (default 5)")->check(CLI::Range(0.1, 60.0));
-    c->add_option("--channels", a->channels, "Channel map ch1..ch5 (default 1,2,3,ambient,none)");
-    c->add_option("--warn", a->warn, "WARN residual band in K (default 1.0)");
-    c->add_option("--alarm", a->alarm, "ALARM residual band in K (default 2.0)");
-    c->add_option("--abs-limit", a->abs_limit, "Absolute temperature limit in degC (default 70)");
-    c->add_option("--max-rise", a->max_rise, "Maximum rate of rise in K/min (default 5; 0 = off)");
-    c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the cooling breakpoint (default: highest)");
-    c->add_flag("--json", a->json_out, "Print the reduced model JSON (per speed hsv, pole_bt, pole_dc) to stdout");
-    c->callback([a] { run_reduce(*a); });
+    c->add_option("--blob", a->blob, "Also write the module's model blob (binary, 464 bytes)");
+    c->add_option("--dt", a->dt, "Module sample period in s (default 5)")->check(CLI::Range(0.1, 60.0));
+    c->add_option("--channels", a->channels, "Channel map override ch1..ch5: node names, 'ambient', 'none'");
+    c->add_option("--stop-phases", a->stop_phases, "Ends of the early stop phases in s (default 600,2400; '0' = one stop pole)");
+    c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the stop poles (default: the middle breakpoint)");
+    c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
+        ->check(CLI::ExistingFile);
+    c->add_option("--margin", a->rule.margin, "Calibration: WARN = margin x worst evidence + floor (default 1.5)");
+    c->add_option("--design-heat", a->design_heat_w,
+                  "Calibration: the extra heat (W) at a channel's node whose ALARM the drift makes soonest (default 10)");
+    c->add_option("--drift", a->detector.drift_K, "Detector drift in K: residual above the model forgiven per sample (default 0.5)");
+    c->add_option("--low-drift", a->detector.low_drift_K, "The same below the model, K (default 0.5)");
+    c->add_option("--warn-evidence", a->detector.warn_evidence_K_min, "WARN threshold of the evidence in K min (default 2)");
+    c->add_option("--alarm-evidence", a->detector.alarm_evidence_K_min, "ALARM threshold of the evidence in K min (default 4)");
+    c->add_option("--low-warn-evidence", a->detector.low_warn_evidence_K_min,
+                  "WARN threshold for a probe colder than its model, K min (default 4; 0 = off)");
+    c->add_option("--abs-limit", a->detector.abs_limit_c, "Absolute temperature limit in degC (default 80)");
+    c->add_option("--max-rise", a->detector.max_rise_K_per_min, "Maximum rate of rise in K/min (default 2; 0 = off)");
+    c->add_flag("--force", a->force, "Accept hand-set detector thresholds the model's own error would reach");
+    c->add_flag("--json", a->json_out, "Print the reduced model JSON to stdout");
+    c->callback([a, c] {
+      std::vector<std::string> given;
+      for (const char* opt : {"--drift", "--low-drift", "--warn-evidence", "--alarm-evidence", "--low-warn-evidence"})
+        if (c->count(opt) > 0) given.push_back(opt);
+      run_reduce(*a, given);
+    });
   }
 }
 

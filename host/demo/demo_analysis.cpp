@@ -1,10 +1,12 @@
 #include "host/demo/demo_analysis.hpp"
 
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
+#include "common/model_step.hpp"
 #include "host/report/plot_style.hpp"
 #include "host/report/thermal_figures.hpp"
 #include "host/residual/residual_loop.hpp"
 #include "host/residual/residual_report.hpp"
+#include "host/thermal/detector_calibration.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
 #include "host/thermal/network.hpp"
@@ -33,52 +35,6 @@ thermal::Network demo_network() {
   thermal::Network net = thermal::preset_network("spindle4");
   thermal::remap_measurements(net, {"shaft=T5"});  // as `btsm fit --column shaft=T5`
   return net;
-}
-
-// Residual bands from the firmware model's own error on the identification recordings. A
-// first-order model cannot follow every fast transient of the spindle (the bearings cool quickly
-// into the housing after a stop, for instance), so fixed bands would raise false alarms on normal
-// running. The module's model (fixed point, exactly as it runs, started from the first measured row
-// like after a boot) is replayed over every recording; per channel the ALARM band is the worst
-// normal residual x `margin` (at least `floor_K`), WARN half of it. Returned per channel, K.
-struct BandCalibration {
-  double worst_K[kModelChannels] = {};
-  double warn_K[kModelChannels] = {};
-  double alarm_K[kModelChannels] = {};
-};
-
-BandCalibration calibrate_bands(ReducedModel& q, const std::vector<const thermal::Recording*>& recs,
-                                const char* const columns[kModelChannels], double margin, double floor_K) {
-  BandCalibration cal;
-  for (const thermal::Recording* rec : recs) {
-    int col[kModelChannels];
-    for (int j = 0; j < kModelChannels; ++j) col[j] = columns[j] ? rec->channel_index(columns[j]) : -1;
-    ReducedModelState st{};
-    reset(st);
-    for (size_t i = 0; i < rec->rows(); ++i) {
-      const auto rpm = static_cast<uint16_t>(std::clamp(std::lround(rec->speed_rpm[i]), 0L, 65535L));
-      const auto amb = static_cast<int32_t>(std::lround(rec->ambient_c[i] * 1000));
-      int32_t meas[kModelChannels];
-      for (int j = 0; j < kModelChannels; ++j) {
-        const double v = col[j] >= 0 ? rec->temp_c(static_cast<Eigen::Index>(i), col[j]) : NAN;
-        meas[j] = std::isfinite(v) ? static_cast<int32_t>(std::lround(v * 1000)) : kModelNoPrediction;
-      }
-      if (i == 0) init_from_measurement(q, st, rpm, amb, meas);
-      int32_t pred[kModelChannels];
-      step(q, st, rpm, amb, pred);
-      for (int j = 0; j < kModelChannels; ++j)
-        if (meas[j] != kModelNoPrediction && pred[j] != kModelNoPrediction && j != q.ambient_channel)
-          cal.worst_K[j] = std::max(cal.worst_K[j], std::abs(meas[j] - pred[j]) / 1000.0);
-    }
-  }
-  for (int j = 0; j < kModelChannels; ++j) {
-    if (((q.enabled_mask >> j) & 1U) == 0 || j == q.ambient_channel) continue;
-    cal.alarm_K[j] = std::min(60.0, std::max(floor_K, margin * cal.worst_K[j]));
-    cal.warn_K[j] = 0.5 * cal.alarm_K[j];
-    q.limits[j].alarm_band_mK = static_cast<uint16_t>(std::lround(cal.alarm_K[j] * 1000));
-    q.limits[j].warn_band_mK = static_cast<uint16_t>(std::lround(cal.warn_K[j] * 1000));
-  }
-  return cal;
 }
 
 std::string fmt_g(double v, int digits = 4) { return fmt::format("{:.{}g}", v, digits); }
@@ -172,43 +128,75 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
     final_net = loop.candidates[loop.chosen].net;
     final_params = loop.candidates[loop.chosen].values;
   }
+  {
+    // The model that is reduced (the base fit with the effect found, if one was), as a model JSON
+    // `btsm reduce` reads.
+    nlohmann::json fj;
+    fj["format"] = "btsm-thermal-model-1";
+    fj["network"] = thermal::network_to_json(final_net);
+    for (int i = 0; i < final_net.param_count(); ++i) fj["parameters"][final_net.params[static_cast<std::size_t>(i)].name] = final_params[i];
+    fj["channel_map"] = thermal::channel_map_json(final_net, fit_recs);
+    thermal::save_json((dir / "models" / "final_model.json").string(), fj);
+  }
   thermal::ReduceOptions ro;
   ro.speeds_rpm = in.reduce_speeds_rpm;
   ro.dt_s = in.sample_period_s;
   ro.channel_node = {{0, 1, 2, -1, 3}};  // ch5 = the probe on the shaft end
-  progress("reducing to the speed-scheduled first-order model");
-  const thermal::ScheduledReduction red = thermal::build_scheduled_model(final_net, final_params, ro);
+  for (const auto* set : {&fit_recs, &check_recs})  // the duty cycle runs up to the recorded top speed
+    for (const auto& r : *set)
+      for (double v : r.speed_rpm) ro.duty_max_rpm = std::max(ro.duty_max_rpm, v);
+  progress("reducing to one first-order model per channel");
+  thermal::ScheduledReduction red = thermal::build_scheduled_model(final_net, final_params, ro);
   if (red.blob.empty()) {
     out.failures.push_back("the reduced model could not be quantized into the firmware blob");
     return out;
   }
-  // Residual bands from the model's own error on everything recorded (fit and check runs).
-  ReducedModel q = red.quantized;
+  // The detector from the model's own residuals on everything recorded (fit and check runs).
   std::vector<const thermal::Recording*> all_recs;
   for (const auto& r : fit_recs) all_recs.push_back(&r);
   for (const auto& r : check_recs) all_recs.push_back(&r);
-  const char* const channel_columns[kModelChannels] = {"T1", "T2", "T3", nullptr, "T5"};
-  const BandCalibration bands = calibrate_bands(q, all_recs, channel_columns, in.band_margin, in.band_floor_K);
-  out.blob.assign(kReducedModelBlobSize, 0);
-  encode(q, out.blob.data());
-  ReducedModel check{};
-  if (!decode(out.blob.data(), out.blob.size(), check).ok()) {
-    out.failures.push_back("the reduced model with calibrated bands does not pass its own validation");
+  const std::array<std::string, kModelChannels> channel_columns = {"T1", "T2", "T3", "", "T5"};
+  const thermal::DetectorCalibration cal =
+      thermal::calibrate_detector(red, all_recs, channel_columns, in.detector_rule);
+  thermal::apply_calibration(cal, red.model);
+  thermal::requantize(red);
+  if (red.blob.empty()) {
+    out.failures.push_back(std::string("the calibrated detector does not fit the blob: ") +
+                           model_status_name(red.quantize_status.status));
     return out;
   }
-  for (int j = 0; j < kModelChannels; ++j) out.alarm_band_K[j] = bands.alarm_K[j];
+  out.blob = red.blob;
+  ReducedModel check{};
+  if (!decode(out.blob.data(), out.blob.size(), check).ok()) {
+    out.failures.push_back("the reduced model with the calibrated detector does not pass its own validation");
+    return out;
+  }
+  for (int j = 0; j < kModelChannels; ++j) {
+    const auto c = static_cast<std::size_t>(j);
+    out.deviation_vs_full_K[j] = red.deviation.quantized_vs_full_K[c];
+    if (!cal.channels[c].diagnosed) continue;
+    out.worst_residual_K[j] = cal.channels[c].worst_residual_K;
+    out.drift_K[j] = cal.channels[c].detector.drift_K;
+    out.alarm_evidence_K_min[j] = cal.channels[c].detector.alarm_evidence_K_min;
+  }
   out.quantized_vs_full_max_K = red.deviation.quantized_vs_full_max_K;
   out.reduced_json = (dir / "models" / "reduced_model.json").string();
   nlohmann::json rj = thermal::reduction_to_json(final_net, red, ro);
   {
     nlohmann::json cb = nlohmann::json::array();
-    for (int j = 0; j < kModelChannels; ++j)
-      cb.push_back({{"channel", j + 1}, {"worst_normal_residual_K", bands.worst_K[j]}, {"warn_band_K", bands.warn_K[j]},
-                    {"alarm_band_K", bands.alarm_K[j]}});
-    rj["diagnosis_calibrated"] = cb;
-    std::string hex;
-    for (uint8_t b : out.blob) hex += fmt::format("{:02x}", b);
-    rj["blob_hex"] = hex;  // what `btsm flash-model` sends (bands above included)
+    for (int j = 0; j < kModelChannels; ++j) {
+      const auto& cc = cal.channels[static_cast<std::size_t>(j)];
+      if (!cc.diagnosed) continue;
+      cb.push_back({{"channel", j + 1}, {"column", cc.column}, {"worst_normal_residual_K", cc.worst_residual_K},
+                    {"worst_upper_evidence_K_min", cc.worst_high_K_min}, {"worst_lower_evidence_K_min", cc.worst_low_K_min},
+                    {"design_fault_alarm_min", cc.design_alarm_min},
+                    {"worst_above_K", cc.worst_above_K}, {"worst_below_K", cc.worst_below_K},
+                    {"drift_K", cc.detector.drift_K}, {"low_drift_K", cc.detector.low_drift_K},
+                    {"warn_evidence_K_min", cc.detector.warn_evidence_K_min},
+                    {"alarm_evidence_K_min", cc.detector.alarm_evidence_K_min},
+                    {"low_warn_evidence_K_min", cc.detector.low_warn_evidence_K_min}});
+    }
+    rj["detector_calibration"] = {{"rule", cal.rule}, {"recordings", cal.recordings}, {"channels", cb}};
   }
   thermal::save_json(out.reduced_json, rj);
   {
@@ -234,49 +222,71 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
     ReducedModel q{};
     decode(out.blob.data(), out.blob.size(), q);
     ReducedModelState st{};
-    reset(st);
+    init_at_ambient(st, static_cast<int32_t>(std::lround(amb * 1000)));
     const double dt = in.sample_period_s;
-    const std::vector<std::pair<double, double>> prof = {{3 * 3600, 6000}, {2 * 3600, 3000}, {2 * 3600, 8000}, {3 * 3600, 0}};
-    std::vector<double> t_h, f1, r1, f3, r3, rpm_trace;
+    const std::vector<std::pair<double, double>> prof = {{3 * 3600, 6000}, {2 * 3600, 3000}, {0.5 * 3600, 0},
+                                                         {2 * 3600, 8000}, {3 * 3600, 0}};
+    const int channels[4] = {0, 1, 2, 4};
+    const int nodes[4] = {0, 1, 2, 3};  // rear bearing, housing, front bearing, shaft (its probe on ch5)
+    std::vector<double> t_h, f[4], r[4], rpm_trace;
     double t = 0;
     for (const auto& [dur, rpm] : prof)
       for (double s = 0; s < dur; s += dt, t += dt) {
         int32_t pred[kModelChannels];
         step(q, st, static_cast<uint16_t>(rpm), static_cast<int32_t>(std::lround(amb * 1000)), pred);
         t_h.push_back(t / 3600);
-        f1.push_back(full.node_temp_c()[0]);
-        f3.push_back(full.node_temp_c()[2]);
-        r1.push_back(pred[0] / 1000.0);
-        r3.push_back(pred[2] / 1000.0);
+        for (int k = 0; k < 4; ++k) {
+          f[k].push_back(full.node_temp_c()[nodes[k]]);
+          r[k].push_back(pred[channels[k]] / 1000.0);
+        }
         rpm_trace.push_back(rpm);
         full.step(dt, rpm, amb);
       }
-    report::Plot temps{"Firmware model (fixed point) vs the full model", report::kTimeAxis, report::kTemperatureAxis,
-                       {report::model("rear_bearing", t_h, f1, "full model"),
-                        report::alternative("rear_bearing", t_h, r1, "firmware model"),
-                        report::model("front_bearing", t_h, f3, "full model"),
-                        report::alternative("front_bearing", t_h, r3, "firmware model")}};
+    report::Plot temps{"Module model (fixed point, one per channel) vs the full network", report::kTimeAxis,
+                       report::kTemperatureAxis, {}};
+    for (int k = 0; k < 4; ++k) {
+      const std::string node = final_net.nodes[static_cast<std::size_t>(nodes[k])].name;
+      temps.series.push_back(report::model(node, t_h, f[k], "full network"));
+      temps.series.push_back(report::alternative(node, t_h, r[k], "module model"));
+    }
     report::save_figure({temps, report::speed_panel(t_h, rpm_trace)}, (dir / "reduced_vs_full").string(),
                         report::network_figure_options(final_net));
   }
-  page.heading("4. Reduction to the module's speed-scheduled first-order model");
-  page.paragraph(fmt::format("Model reduced: {}. DC-matched (singular perturbation) first-order models at each speed; the "
-                             "quantized firmware model deviates from the full model by at most {:.3f} K and from its "
-                             "double-precision reduction by {:.4f} K over {}.",
-                             final_net.name, red.deviation.quantized_vs_full_max_K,
-                             red.deviation.quantized_vs_double_max_K, red.deviation.profile));
+  page.heading("4. Reduction to the module's model: one first-order model per channel");
+  page.paragraph(fmt::format("Model reduced: {}. Each diagnosed channel has its own speed-scheduled first-order model "
+                             "(DC-matched; own poles while stopped, scheduled on the time since the stop). The quantized "
+                             "module model deviates from the full network by at most {:.3f} K (per channel: T1 {:.2f}, T2 "
+                             "{:.2f}, T3 {:.2f}, T5 {:.2f} K) and from its double-precision reduction by {:.4f} K over {}.",
+                             final_net.name, red.deviation.quantized_vs_full_max_K, red.deviation.quantized_vs_full_K[0],
+                             red.deviation.quantized_vs_full_K[1], red.deviation.quantized_vs_full_K[2],
+                             red.deviation.quantized_vs_full_K[4], red.deviation.quantized_vs_double_max_K,
+                             red.deviation.profile));
   page.table({"speed (rpm)", "largest HSV (K/W)", "slowest full pole (1/s)", "BT pole (1/s)", "DC-matched pole (1/s)"}, rrow);
   {
-    std::vector<std::vector<std::string>> brow;
+    std::vector<std::vector<std::string>> trow;
     const char* names[kModelChannels] = {"T1 rear bearing", "T2 housing", "T3 front bearing", "T4 ambient", "T5 shaft end"};
-    for (int j = 0; j < kModelChannels; ++j)
-      if (bands.alarm_K[j] > 0)
-        brow.push_back({names[j], fmt::format("{:.2f}", bands.worst_K[j]), fmt::format("{:.2f}", bands.warn_K[j]),
-                        fmt::format("{:.2f}", bands.alarm_K[j])});
-    page.paragraph(fmt::format("Residual bands: the firmware model replayed over every recording (started from the first "
-                               "measured row, as after a boot); ALARM = {:.1f} x its worst normal residual (at least "
-                               "{:.1f} K), WARN = half of that.", in.band_margin, in.band_floor_K));
-    page.table({"channel", "worst normal residual (K)", "WARN band (K)", "ALARM band (K)"}, brow);
+    for (int j = 0; j < kModelChannels; ++j) {
+      const auto& cr = red.channels[static_cast<std::size_t>(j)];
+      if (cr.node < 0) continue;
+      std::string taus;
+      for (std::size_t i = 1; i < cr.tau_s.size(); ++i) taus += fmt::format("{}{:.0f}", i > 1 ? " / " : "", cr.tau_s[i] / 60);
+      trow.push_back({names[j], taus, fmt::format("{:.1f} / {:.1f} / {:.0f}", cr.stop_tau_s[0] / 60, cr.stop_tau_s[1] / 60, cr.tau_s[0] / 60)});
+    }
+    page.table({"channel", "time constant running (min, per speed)", "time constants stopped (min, per phase)"}, trow);
+    std::vector<std::vector<std::string>> brow;
+    for (int j = 0; j < kModelChannels; ++j) {
+      const auto& cc = cal.channels[static_cast<std::size_t>(j)];
+      if (!cc.diagnosed) continue;
+      brow.push_back({names[j], fmt::format("{:.2f} / {:.2f}", cc.worst_above_K, cc.worst_below_K),
+                      fmt::format("{:.2f} / {:.2f}", cc.detector.drift_K, cc.detector.low_drift_K),
+                      fmt::format("{:.2f}", cc.worst_high_K_min), fmt::format("{:.2f}", cc.detector.warn_evidence_K_min),
+                      fmt::format("{:.2f}", cc.detector.alarm_evidence_K_min),
+                      fmt::format("{:.2f}", cc.detector.low_warn_evidence_K_min)});
+    }
+    page.paragraph("Detector: " + cal.rule + ".");
+    page.table({"channel", "worst normal residual above / below (K)", "drift above / below (K)", "worst upper evidence (K min)", "WARN (K min)",
+                "ALARM (K min)", "lower WARN (K min)"},
+               brow);
   }
   page.image("hankel_singular_values.png", "Hankel singular values: one dominant state at every speed");
   page.image("reduced_vs_full.png", "The module's fixed-point first-order model against the full network");

@@ -3,9 +3,10 @@
 // through the same library calls the CLI commands use, with their figures and plots added to the
 // report page.
 #include "host/demo/demo_plan.hpp"
+#include "host/thermal/detector_calibration.hpp"
 #include "host/report/html_report.hpp"
 
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 
 #include <cstdint>
 #include <functional>
@@ -20,8 +21,7 @@ struct AnalysisInputs {
   std::string out_dir;                  // report folder
   std::vector<double> reduce_speeds_rpm;
   double sample_period_s = 5.0;         // the module's sample period (the reduced model's dt)
-  double band_margin = 1.5;             // ALARM band = margin x worst residual on the recordings
-  double band_floor_K = 1.0;            // ALARM band never below this, K
+  thermal::DetectorRule detector_rule;  // how the module's detector is calibrated on the recordings
   std::function<void(const std::string&)> progress;
 };
 
@@ -32,8 +32,11 @@ struct AnalysisOutputs {
   std::string effect;                   // what the residual loop found ("none", "unexplained", ...)
   std::vector<std::string> effect_nodes;
   double check_rmse_before_K = 0, check_rmse_after_K = 0;
-  double quantized_vs_full_max_K = 0;   // measured deviation of the flashed model
-  double alarm_band_K[kModelChannels] = {};  // per channel, calibrated on the recordings (0 = not diagnosed)
+  double quantized_vs_full_max_K = 0;   // measured deviation of the flashed model, worst channel
+  double deviation_vs_full_K[5] = {};   // K, per channel (0 = not modelled)
+  double worst_residual_K[5] = {};      // K, per diagnosed channel, on the recordings
+  double drift_K[5] = {};               // K, calibrated detector per diagnosed channel
+  double alarm_evidence_K_min[5] = {};  // K min
   std::vector<std::string> failures;    // checks that did not hold
 };
 

@@ -1,6 +1,6 @@
 #include "host/link/model_blob_file.hpp"
 
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "host/io/hex.hpp"
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
@@ -63,6 +63,10 @@ std::string check_model_blob(std::span<const uint8_t> blob) {
   ReducedModel m;
   const ModelCheck c = decode(blob.data(), blob.size(), m);
   if (c.ok()) return {};
+  if (c.status == ModelStatus::kBadVersion)
+    return fmt::format("model blob format version {} is not supported: this btsm and its firmware read version {} "
+                       "(one first-order model per channel); reduce the fitted model again with this btsm",
+                       c.channel, kReducedModelVersion);
   std::string where;
   if (c.breakpoint != 0xFF) where = fmt::format(" (breakpoint {})", c.breakpoint);
   else if (c.channel != 0xFF) where = fmt::format(" (channel {})", c.channel + 1);

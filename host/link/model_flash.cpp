@@ -2,7 +2,7 @@
 
 #include "common/crc.hpp"
 #include "common/hmac.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 
 #include <fmt/format.h>
 
@@ -14,7 +14,7 @@ using namespace btsm::wire;
 
 namespace {
 
-// INFO.model_crc names the active blob: the CRC stored in the blob (reduced_model.hpp), which
+// INFO.model_crc names the active blob: the CRC stored in the blob (model_blob.hpp), which
 // some firmware builds may report as the CRC-32 over the whole blob instead; both identify it.
 bool info_crc_matches(uint32_t info_crc, std::span<const uint8_t> blob) {
   if (blob.size() == kReducedModelBlobSize && info_crc == blob_stored_crc(blob.data())) return true;
@@ -76,6 +76,72 @@ std::array<uint8_t, 32> model_auth_tag(const DeviceKey& key, std::span<const uin
   mac.update(context, sizeof context);
   mac.final(tag.data());
   return tag;
+}
+
+namespace {
+std::string role_text(uint8_t model_role) {
+  if (model_role == kModelRoleUnchecked) return "a node without a role name";
+  const char* n = channel_role_name(model_role);
+  return n ? n : fmt::format("role {}", model_role);
+}
+}  // namespace
+
+ChannelMapCheck check_channel_map(const uint8_t model_roles[5], const uint8_t module_roles[5]) {
+  ChannelMapCheck c;
+  for (int j = 0; j < 5; ++j) {
+    ChannelMapCheck::Channel ch;
+    ch.model_role = model_roles[j];
+    ch.module_role = module_roles[j];
+    const char* mod = channel_role_name(module_roles[j]);
+    const std::string module = mod ? mod : fmt::format("role {}", module_roles[j]);
+    const std::string chn = fmt::format("ch{}", j + 1);
+    if (ch.model_role == kModelRoleNotModelled) {
+      ch.verdict = "not modelled";
+      ch.text = fmt::format("{}: no model, module {}", chn, module);
+    } else if (ch.model_role == kModelRoleUnchecked) {
+      ch.verdict = "unchecked";
+      ch.text = fmt::format("{}: model of {} (not checked against the module's role), module {}", chn,
+                            role_text(ch.model_role), module);
+    } else if (ch.model_role == ch.module_role) {
+      ch.verdict = "ok";
+      ch.text = fmt::format("{}: model {}, module {}", chn, role_text(ch.model_role), module);
+    } else if (ch.model_role == kModelRoleAmbient || ch.module_role == static_cast<uint8_t>(ChannelRole::Ambient) ||
+               is_thermal_role(ch.module_role)) {
+      ch.verdict = "conflict";
+      ch.text = fmt::format("{}: model {}, module {}  <-- DISAGREE", chn, role_text(ch.model_role), module);
+      c.conflicts.push_back(
+          ch.model_role == kModelRoleAmbient
+              ? fmt::format("the model takes its ambient from {}, but the module's {} is {}: the module would predict nothing", chn, chn, module)
+              : fmt::format("{} is {} on the module but the model there predicts the {}: probes or roles swapped? "
+                            "(reduce with the module's roles, or set channel_role_{} {})",
+                            chn, module, role_text(ch.model_role), j + 1, role_text(ch.model_role)));
+    } else {
+      ch.verdict = "warning";
+      ch.text = fmt::format("{}: model {}, module {} (not diagnosed)", chn, role_text(ch.model_role), module);
+      c.warnings.push_back(fmt::format("{} has a model of the {} but the module's role is {}: it is not diagnosed "
+                                       "(set channel_role_{} {} to diagnose it)",
+                                       chn, role_text(ch.model_role), module, j + 1, role_text(ch.model_role)));
+    }
+    c.channels.push_back(ch);
+  }
+  return c;
+}
+
+bool blob_channel_roles(std::span<const uint8_t> blob, uint8_t roles[5]) {
+  if (blob.size() != kReducedModelBlobSize || blob_version(blob.data(), blob.size()) != kReducedModelVersion) return false;
+  for (int j = 0; j < 5; ++j) roles[j] = blob[kBlobOffRoles + j];
+  return true;
+}
+
+ActiveModelMap read_active_model_map(Session& session) {
+  ActiveModelMap m;
+  const ModelData head = session.model_read(0, static_cast<uint8_t>(kBlobOffVersion + 1));
+  if (head.len != kBlobOffVersion + 1 || get_le32(head.data) != kReducedModelMagic) return m;
+  m.version = head.data[kBlobOffVersion];
+  if (m.version != kReducedModelVersion) return m;
+  const ModelData r = session.model_read(static_cast<uint16_t>(kBlobOffRoles), kModelChannels);
+  for (int j = 0; j < 5 && j < r.len; ++j) m.roles[j] = r.data[j];
+  return m;
 }
 
 std::array<uint8_t, 32> model_commit_tag(const DeviceKey& key, std::span<const uint8_t> nonce,

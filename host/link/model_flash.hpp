@@ -54,6 +54,30 @@ std::vector<uint8_t> read_model(Session& session, size_t len);
 // HMAC-SHA256(key, nonce || wire::encode_model_auth_context(total_len, blob_crc32)): MODEL_AUTH.
 std::array<uint8_t, 32> model_auth_tag(const DeviceKey& key, std::span<const uint8_t> nonce, uint16_t total_len,
                                        uint32_t blob_crc32);
+// The model's channel map (the module role each channel's model was reduced for, model_blob.hpp)
+// against the module's configured roles, channel by channel.
+struct ChannelMapCheck {
+  struct Channel {
+    uint8_t model_role = 0;   // model_blob.hpp code (0 not modelled, 1 ambient, 0xFF unchecked)
+    uint8_t module_role = 0;  // wire ChannelRole
+    std::string verdict;      // "ok", "not modelled", "unchecked", "warning", "conflict"
+    std::string text;         // one line for people, e.g. "ch1: model rear_bearing, module rear_bearing"
+  };
+  std::vector<Channel> channels;      // five
+  std::vector<std::string> conflicts;  // the module would check a channel against another node's model
+  std::vector<std::string> warnings;   // the model predicts a channel the module does not diagnose, ...
+  bool ok() const { return conflicts.empty(); }
+};
+ChannelMapCheck check_channel_map(const uint8_t model_roles[5], const uint8_t module_roles[5]);
+// The role bytes of a version-2 blob (false for anything else).
+bool blob_channel_roles(std::span<const uint8_t> blob, uint8_t roles[5]);
+// The active model's format version and role bytes read from the module (two MODEL_READs);
+// version 0 when the module has no active model.
+struct ActiveModelMap {
+  uint8_t version = 0;
+  uint8_t roles[5] = {};
+};
+ActiveModelMap read_active_model_map(Session& session);
 
 // HMAC-SHA256(key, nonce || blob) as the module computes it.
 std::array<uint8_t, 32> model_commit_tag(const DeviceKey& key, std::span<const uint8_t> nonce,

@@ -43,6 +43,55 @@ double node_z(const AugmentedModel& am, const th::FitResult& fr, const std::stri
   return z;
 }
 
+// The base capacitance held when an effect adds a free capacitance: the new capacitance is not
+// part of the known total, so the largest base capacitance keeps its base-fit value instead (the
+// same scale, fixed another way).
+std::vector<std::string> held_for(const CandidateContext& ctx, const AugmentedModel& a) {
+  std::vector<std::string> h;
+  const th::Network& base = *ctx.base;
+  if (a.adds_free_capacitance && std::isfinite(base.sum_capacitance_J_per_K)) {
+    const int c = largest_capacitance_param(base, ctx.base_params);
+    if (c >= 0 && !base.params[static_cast<std::size_t>(c)].fixed) h.push_back(base.params[static_cast<std::size_t>(c)].name);
+  }
+  return h;
+}
+
+// The evidence of a fitted candidate: errors on the full-rate fit and on the check recordings,
+// BIC against the base, key |z|, identifiability, the effect in physical terms.
+void fill_evidence(const CandidateContext& ctx, const AugmentedModel& am, const EffectSpec& spec, const th::FitResult& fr,
+                   CandidateResult& cr) {
+  const auto& fit = *ctx.fit;
+  std::vector<Eigen::MatrixXd> rf, rc;
+  const std::vector<Eigen::MatrixXd> imp_fit = impulses_for(am, fit);
+  // (the refit's initial states: the decimated recordings start at the same row)
+  for (std::size_t r = 0; r < fit.size(); ++r)
+    rf.push_back(evaluate_model(cr.net, cr.values, fit[r], imp_fit.empty() ? nullptr : &imp_fit[r], &fr.initial_states[r]).residual_k);
+  for (const auto& r : *ctx.check) rc.push_back(evaluate_candidate(cr, r).residual_k);
+  cr.fit = error_metrics(rf, ctx.measured_fit);
+  cr.check = error_metrics(rc, ctx.measured_check);
+  std::size_t nn = 0;
+  const double rss = sum_of_squares(rf, nn);
+  const int k = fr.free_parameter_count + cr.net.node_count() * static_cast<int>(fit.size());
+  cr.bic = bic(rss, nn, k);
+  cr.delta_bic = ctx.base_bic - cr.bic;
+  cr.check_factor = cr.check.rmse_k > 0 ? ctx.before_check.rmse_k / cr.check.rmse_k : 0;
+  cr.key_z = std::numeric_limits<double>::infinity();
+  for (const auto& name : am.key_params) {
+    const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
+    const double z = est.sigma > 0 ? std::abs(est.value) / est.sigma : (est.value != 0 ? 1e9 : 0.0);
+    cr.key_z = std::min(cr.key_z, z);
+  }
+  if (!std::isfinite(cr.key_z)) cr.key_z = 0;
+  cr.identifiable = true;
+  cr.params.clear();
+  for (const auto& name : am.effect_params) {
+    const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
+    cr.params.push_back({est.name, est.unit, est.value, est.sigma, est.at_bound ? "at its bound" : th::identifiability_name(est.status)});
+    if (est.at_bound || est.status == th::Identifiability::NotIdentifiable) cr.identifiable = false;
+  }
+  cr.quantities = effect_quantities(am, spec, *ctx.base, fr.params, fr.covariance);
+}
+
 }  // namespace
 
 th::Recording decimated(const th::Recording& rec, double step_s) {
@@ -282,35 +331,10 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     cr.transient_node = am.transient_node;
     cr.trigger = am.trigger;
     cr.rest_nodes = am.rest_nodes;
-    // evidence on the fit recordings
-    std::vector<Eigen::MatrixXd> rf, rc;
-    const std::vector<Eigen::MatrixXd> imp_fit = impulses_for(am, fit);
-    for (std::size_t r = 0; r < fit.size(); ++r)
-      rf.push_back(evaluate_model(cr.net, cr.values, fit[r], imp_fit.empty() ? nullptr : &imp_fit[r], &fr.initial_states[r]).residual_k);
-    // (the refit's initial states: the decimated recordings start at the same row)
-    for (const auto& r : check) rc.push_back(evaluate_candidate(cr, r).residual_k);
-    cr.fit = error_metrics(rf, ctx.measured_fit);
-    cr.check = error_metrics(rc, ctx.measured_check);
-    std::size_t nn = 0;
-    const double rss = sum_of_squares(rf, nn);
-    const int k = fr.free_parameter_count + cr.net.node_count() * static_cast<int>(fit.size());
-    cr.bic = bic(rss, nn, k);
-    cr.delta_bic = ctx.base_bic - cr.bic;
-    cr.check_factor = cr.check.rmse_k > 0 ? ctx.before_check.rmse_k / cr.check.rmse_k : 0;
-    cr.key_z = std::numeric_limits<double>::infinity();
-    for (const auto& name : am.key_params) {
-      const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
-      const double z = est.sigma > 0 ? std::abs(est.value) / est.sigma : (est.value != 0 ? 1e9 : 0.0);
-      cr.key_z = std::min(cr.key_z, z);
-    }
-    if (!std::isfinite(cr.key_z)) cr.key_z = 0;
-    cr.identifiable = true;
-    for (const auto& name : am.effect_params) {
-      const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
-      cr.params.push_back({est.name, est.unit, est.value, est.sigma, est.at_bound ? "at its bound" : th::identifiability_name(est.status)});
-      if (est.at_bound || est.status == th::Identifiability::NotIdentifiable) cr.identifiable = false;
-    }
-    cr.quantities = effect_quantities(am, spec, base, fr.params, fr.covariance);
+    cr.key_params = am.key_params;
+    cr.effect_params = am.effect_params;
+    cr.held = held_for(ctx, am);
+    fill_evidence(ctx, am, spec, fr, cr);
     cr.status = "fitted";
   } catch (const std::exception& e) {
     cr.status = "failed";
@@ -318,6 +342,35 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
   }
   cr.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   return cr;
+}
+
+bool polish_candidate(const CandidateContext& ctx, CandidateResult& c) {
+  if (!ctx.fit_base || c.status == "failed" || c.status == "refused" || c.status == "not fitted") return false;
+  if (ctx.fit_refit == nullptr || ctx.fit_refit == ctx.fit) return false;
+  bool decimated_any = false;
+  for (std::size_t r = 0; r < ctx.fit->size(); ++r) decimated_any = decimated_any || (*ctx.fit_refit)[r].rows() != (*ctx.fit)[r].rows();
+  if (!decimated_any) return false;
+  AugmentedModel am;
+  am.net = c.net;
+  am.params = c.values;
+  am.key_params = c.key_params;
+  am.effect_params = c.effect_params;
+  am.transient_node = c.transient_node;
+  am.rest_nodes = c.rest_nodes;
+  am.trigger = c.trigger;
+  th::FitOptions f;
+  f.staged = false;
+  f.start = c.values;
+  f.relative_tolerance = 1e-9;
+  f.max_iterations = ctx.joint_iterations;
+  f.extra_heat_w = impulses_for(am, *ctx.fit);
+  f.initial_state_at_ambient = am.rest_nodes;
+  f.hold = c.held;
+  const th::FitResult fr = th::fit_network(am.net, *ctx.fit, f);
+  if (!(fr.rms_K < c.fit.rmse_k)) return false;
+  c.values = fr.params;
+  fill_evidence(ctx, am, c.spec, fr, c);
+  return true;
 }
 
 }  // namespace btsm::residual

@@ -37,6 +37,10 @@ struct CandidateContext {
 // reason are left to the decision. A failing fit gives status "failed" with the error as the reason.
 CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p);
 
+// Refits a fitted candidate jointly on the full-rate fit recordings from its values (the refits
+// run on decimated recordings) and refreshes its evidence; true when that lowered the fit error.
+bool polish_candidate(const CandidateContext& ctx, CandidateResult& c);
+
 // Every k-th row of a recording with k = the step that reaches `step_s` (1: the recording itself).
 // The speed on a kept row holds until the next kept row, so a speed change moves by < k samples.
 thermal::Recording decimated(const thermal::Recording& rec, double step_s);

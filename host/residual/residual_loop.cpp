@@ -49,6 +49,7 @@ class ResidualLoop {
     refit_candidates();
     repolish_base();
     decide();
+    polish_chosen();
     L_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start_).count();
     say(fmt::format("residual: verdict {} ({}) in {:.1f} s", L_.verdict, L_.label, L_.seconds));
     return std::move(L_);
@@ -295,7 +296,7 @@ class ResidualLoop {
 
   // Stage 6: joint refits of the best proposals.
   void refit_candidates() {
-    CandidateContext ctx;
+    CandidateContext& ctx = ctx_;
     ctx.base = &base_;
     ctx.base_params = bp_;
     ctx.fit = &fit_;
@@ -391,6 +392,29 @@ class ResidualLoop {
       c.delta_bic = base_bic_ - c.bic;
       c.check_factor = c.check.rmse_k > 0 ? L_.before_check.rmse_k / c.check.rmse_k : 0;
     }
+  }
+
+  // Stage 7b: the refits ran on decimated recordings; the chosen candidate is refitted on the
+  // full-rate ones from its values (near its optimum: a few iterations) and the decision is
+  // taken again with its refreshed evidence.
+  void polish_chosen() {
+    if (L_.chosen < 0) return;
+    CandidateResult& c = L_.candidates[static_cast<std::size_t>(L_.chosen)];
+    const double before = c.fit.rmse_k;
+    bool better = false;
+    try {
+      ctx_.base_bic = base_bic_;
+      ctx_.before_check = L_.before_check;
+      better = polish_candidate(ctx_, c);
+    } catch (const std::exception& e) {
+      say(std::string("residual: full-rate refit of the chosen candidate failed: ") + e.what());
+    }
+    if (!better) return;
+    say(fmt::format("residual: {} refitted on the full-rate recordings: fit rms {:.4g} -> {:.4g} K, check {:.4g} K", c.label, before,
+                    c.fit.rmse_k, c.check.rmse_k));
+    for (auto& x : L_.candidates)
+      if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+    decide();
   }
 
   // Stage 7: the held-out decision.
@@ -525,6 +549,7 @@ class ResidualLoop {
   std::vector<Eigen::MatrixXd> meas_fit_, meas_check_, nodes_fit_, nodes_check_;
   std::vector<std::string> boundaries_, events_, usable_boundaries_, usable_events_;
   std::vector<th::Recording> fit_refit_;
+  CandidateContext ctx_;
 };
 
 }  // namespace

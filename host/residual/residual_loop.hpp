@@ -111,6 +111,8 @@ struct CandidateResult {
   int transient_node = -1;
   TransientTrigger trigger = TransientTrigger::SpeedIncrease;
   std::vector<int> rest_nodes;    // nodes at the ambient when a recording starts
+  std::vector<std::string> key_params, effect_params;  // network names (see AugmentedModel)
+  std::vector<std::string> held;  // base parameters held in its refits (the scale, when it adds a capacitance)
   double seconds = 0;
 };
 

@@ -32,6 +32,13 @@ nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std
 // without a path of positive conductances to ambient, or driven heat that outgrows its outflow).
 std::string model_problems(const Network& net, const Eigen::VectorXd& params);
 
+// The module channel -> recorded column -> node map of a fit ("channel_map" in the model JSON):
+// channel n is recorded as column "Tn" (btsm record); its module role comes from the recordings'
+// channel_roles metadata (null when they carry none), its node from the network's measurements,
+// or "ambient" for the channel the recordings name as ambient (recorded as ambient_c). Channels
+// without a column in the recordings are left out.
+nlohmann::json channel_map_json(const Network& net, const std::vector<Recording>& recs);
+
 // Reads a model; every model passes model_problems() on load, so validate, reduce, heat and
 // residual never work on a value the network forbids. Throws std::invalid_argument (io::InputError
 // for an unreadable file) naming the source and the problems.

@@ -2,7 +2,47 @@
 // of the fit).
 #include "model_file.hpp"
 
+#include <map>
+#include <sstream>
+
 namespace btsm::thermal {
+
+nlohmann::json channel_map_json(const Network& net, const std::vector<Recording>& recs) {
+  std::map<std::string, std::string> role_of_column;  // from the first recording that read the module's roles
+  std::string ambient_column;
+  for (const auto& rec : recs) {
+    const std::string meta = rec.meta_value("channel_roles");
+    if (role_of_column.empty() && !meta.empty() && meta.find('(') == std::string::npos) {
+      std::stringstream ss(meta);
+      std::string pair;
+      while (std::getline(ss, pair, ','))
+        if (const auto eq = pair.find('='); eq != std::string::npos) role_of_column[pair.substr(0, eq)] = pair.substr(eq + 1);
+    }
+    if (ambient_column.empty()) ambient_column = rec.meta_value("ambient_channel");
+  }
+  nlohmann::json map = nlohmann::json::array();
+  for (int ch = 1; ch <= 5; ++ch) {
+    const std::string column = "T" + std::to_string(ch);
+    if (recs.empty()) continue;
+    if (recs.front().channel_index(column) < 0) {
+      // btsm record writes the ambient channel's reading as ambient_c, not as its own column.
+      if (column == ambient_column)
+        map.push_back({{"channel", ch}, {"column", "ambient_c"}, {"module_role", "ambient"}, {"node", "ambient"}});
+      continue;
+    }
+    nlohmann::json e{{"channel", ch}, {"column", column}};
+    const auto role = role_of_column.find(column);
+    e["module_role"] = role == role_of_column.end() ? nlohmann::json(nullptr) : nlohmann::json(role->second);
+    nlohmann::json node = nullptr;
+    for (const auto& m : net.measurements)
+      if (m.column == column) node = net.nodes[static_cast<std::size_t>(m.node)].name;
+    if (node.is_null() && (column == ambient_column || (role != role_of_column.end() && role->second == "ambient")))
+      node = "ambient";
+    e["node"] = node;
+    map.push_back(e);
+  }
+  return map;
+}
 
 nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std::vector<Recording>& recs) {
   nlohmann::json j;
@@ -44,6 +84,7 @@ nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std
     j["recordings"].push_back(rj);
   }
   j["warnings"] = fit.warnings;
+  j["channel_map"] = channel_map_json(net, recs);
   return j;
 }
 

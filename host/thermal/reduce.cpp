@@ -1,14 +1,16 @@
-// Balanced reduction in the modal basis and the speed-scheduled firmware model.
+// Balanced analysis in the modal basis and the module's per-channel first-order model.
 #include "reduce.hpp"
 
 #include "simulator.hpp"
 
 #include "common/hex_text.hpp"
+#include "common/model_step.hpp"
 
-#include <Eigen/Eigenvalues>
 #include <Eigen/Cholesky>
+#include <Eigen/Eigenvalues>
 #include <Eigen/LU>
-#include <Eigen/SVD>
+
+#include <fmt/core.h>
 
 #include <algorithm>
 #include <cmath>
@@ -25,19 +27,14 @@ Eigen::MatrixXd psd_factor(const Eigen::MatrixXd& P) {
   return es.eigenvectors() * d.asDiagonal();
 }
 
-}  // namespace
-
-namespace {
-
-// One speed's reduction from its assembled matrices (A = -C^-1 G, inputs E), so that each speed's
-// network is assembled once.
-SpeedReduction reduce_assembled(const Network& net, const NodeMatrices& m, double speed, const Eigen::MatrixXd& E) {
-  const ModalForm f = modal_form(m);
-  const int n = net.node_count();
+// The balanced analysis of (A, E, all nodes) from one assembly and its modal form.
+SpeedReduction balanced(const NodeMatrices& m, const ModalForm& f, double speed, const Eigen::MatrixXd& E) {
+  const auto n = static_cast<int>(m.capacitance.size());
   SpeedReduction r;
   r.speed_rpm = speed;
   for (int i = 0; i < n; ++i)
-    if (!(f.lambda[i] > 0)) throw std::runtime_error("reduction: the network is not stable at " + std::to_string(speed) + " rpm (no path to ambient)");
+    if (!(f.lambda[i] > 0))
+      throw std::runtime_error("reduction: the network is not stable at " + std::to_string(speed) + " rpm (no path to ambient)");
   // Modal coordinates: A~ = -diag(lambda), B~ = V^T C^-1/2 E, C~ = C^-1/2 V.
   const Eigen::VectorXd cis = f.c_sqrt.cwiseInverse();
   const Eigen::MatrixXd Bm = f.V.transpose() * cis.asDiagonal() * E;
@@ -55,10 +52,9 @@ SpeedReduction reduce_assembled(const Network& net, const NodeMatrices& m, doubl
   const Eigen::MatrixXd Lo = llt.info() == Eigen::Success ? Eigen::MatrixXd(llt.matrixL()) : psd_factor(Q);
   const Eigen::MatrixXd M = Lo.transpose() * P * Lo;
   Eigen::SelfAdjointEigenSolver<Eigen::MatrixXd> hs(M);
-  // descending order
   Eigen::VectorXd sig(n);
   Eigen::MatrixXd U(n, n);
-  for (int i = 0; i < n; ++i) {
+  for (int i = 0; i < n; ++i) {  // descending
     sig[i] = std::sqrt(std::max(0.0, hs.eigenvalues()[n - 1 - i]));
     U.col(i) = hs.eigenvectors().col(n - 1 - i);
   }
@@ -102,23 +98,113 @@ SpeedReduction reduce_assembled(const Network& net, const NodeMatrices& m, doubl
   return r;
 }
 
+// Steady node rises above ambient with the heat of the assembled speed.
+Eigen::VectorXd steady_rise(const NodeMatrices& m) {
+  Eigen::FullPivLU<Eigen::MatrixXd> lu(m.G);
+  if (!lu.isInvertible()) throw std::runtime_error("reduction: the network has no path to ambient");
+  return lu.solve(m.heat_w);
+}
+
+// One node's rise over time from rise x0 at a speed: y(t) = y_inf + sum_i w_i exp(-lambda_i t).
+struct NodeResponse {
+  double y_inf = 0;
+  Eigen::VectorXd w, lambda;
+  double at(double t) const {
+    double y = y_inf;
+    for (Eigen::Index i = 0; i < w.size(); ++i) y += w[i] * std::exp(-lambda[i] * t);
+    return y;
+  }
+};
+
+NodeResponse node_response(const ModalForm& f, const Eigen::VectorXd& x_inf, const Eigen::VectorXd& x0, int node) {
+  // x(t) = x_inf + C^-1/2 V exp(-Lambda t) V^T C^1/2 (x0 - x_inf)
+  const Eigen::VectorXd z = f.V.transpose() * (f.c_sqrt.asDiagonal() * (x0 - x_inf));
+  NodeResponse r;
+  r.y_inf = x_inf[node];
+  r.lambda = f.lambda;
+  r.w = (f.V.row(node).transpose().array() * z.array()).matrix() / f.c_sqrt[node];
+  return r;
+}
+
+// The pole p of y_inf + (y_start - y_inf) exp(-p (t - t_start)) closest to the node's response in
+// the max norm over t in [t_start, t_end] (sampled every `step` s): a coarse log grid, then a
+// golden-section search around its best point.
+double minimax_pole(const NodeResponse& y, double t_start, double t_end, double step) {
+  std::vector<double> t, v;
+  for (double s = t_start; s <= t_end; s += step) {
+    t.push_back(s - t_start);
+    v.push_back(y.at(s));
+  }
+  const double y0 = v.front();
+  const auto err = [&](double log_p) {
+    const double p = std::exp(log_p);
+    double e = 0;
+    for (std::size_t k = 0; k < t.size(); ++k)
+      e = std::max(e, std::abs(v[k] - (y.y_inf + (y0 - y.y_inf) * std::exp(-p * t[k]))));
+    return e;
+  };
+  const double lo = std::log(0.1 * y.lambda.minCoeff()), hi = std::log(10.0 * y.lambda.maxCoeff());
+  const int grid = 120;
+  int best = 0;
+  double best_e = 1e300;
+  for (int i = 0; i <= grid; ++i) {
+    const double e = err(lo + (hi - lo) * i / grid);
+    if (e < best_e) best_e = e, best = i;
+  }
+  double a = lo + (hi - lo) * std::max(0, best - 1) / grid, b = lo + (hi - lo) * std::min(grid, best + 1) / grid;
+  const double g = (std::sqrt(5.0) - 1) / 2;
+  double c = b - g * (b - a), d = a + g * (b - a), ec = err(c), ed = err(d);
+  for (int it = 0; it < 60; ++it) {
+    if (ec < ed) {
+      b = d, d = c, ed = ec, c = b - g * (b - a), ec = err(c);
+    } else {
+      a = c, c = d, ec = ed, d = a + g * (b - a), ed = err(d);
+    }
+  }
+  return std::exp(0.5 * (a + b));
+}
+
+// The pole that takes y from y(t0) to y(t1) exactly (free response, y_inf = 0); positive (a
+// rising or non-positive response gets a pole of ~ a year: "hold").
+double matching_pole(const NodeResponse& y, double t0, double t1) {
+  const double y0 = y.at(t0), y1 = y.at(t1);
+  const double p = (y0 > 0 && y1 > 0) ? std::log(y0 / y1) / (t1 - t0) : 0.0;
+  return std::max(p, 3e-8);
+}
+
 }  // namespace
+
+uint8_t role_for_node(const std::string& node_name) {
+  for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r) {
+    const char* name = wire::channel_role_name(r);
+    if (wire::is_thermal_role(r) && name != nullptr && node_name == name) return r;
+  }
+  return kModelRoleUnchecked;
+}
 
 SpeedReduction reduce_with_inputs(const Network& net, const Eigen::VectorXd& params, double speed,
                                   const Eigen::MatrixXd& E) {
-  return reduce_assembled(net, assemble(net, params, speed), speed, E);
+  const NodeMatrices m = assemble(net, params, speed);
+  return balanced(m, modal_form(m), speed, E);
 }
 
 SpeedReduction reduce_at_speed(const Network& net, const Eigen::VectorXd& params, double speed) {
   const NodeMatrices m = assemble(net, params, speed);
   if (m.source_to_node.cols() == 0) throw std::runtime_error("reduction: the network has no heat sources (inputs)");
-  SpeedReduction r = reduce_assembled(net, m, speed, m.source_to_node);
+  SpeedReduction r = balanced(m, modal_form(m), speed, m.source_to_node);
   r.source_w = m.source_w;
-  // The steady rise over ambient (ambient at 0, no boundaries: reduce refuses them), as
-  // steady_state_c computes it, from the same matrices.
-  r.steady_rise_K = Eigen::FullPivLU<Eigen::MatrixXd>(m.G).solve(m.heat_w);
+  r.steady_rise_K = steady_rise(m);
   r.bt_steady_rise_K = r.bt.c * (-(r.bt.b * m.source_w)(0) / r.bt.pole);
   return r;
+}
+
+void requantize(ScheduledReduction& r) {
+  r.blob.clear();
+  r.quantize_status = quantize(r.model, r.quantized);
+  if (r.quantize_status.ok()) {
+    r.blob.assign(kReducedModelBlobSize, 0);
+    encode(r.quantized, r.blob.data());
+  }
 }
 
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& o) {
@@ -140,85 +226,126 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     throw std::invalid_argument(msg);
   }
   if (o.speeds_rpm.size() + 1 > kModelMaxBreakpoints)
-    throw std::invalid_argument("reduce: at most " + std::to_string(kModelMaxBreakpoints - 1) + " operating speeds fit the firmware blob");
+    throw std::invalid_argument("reduce: at most " + std::to_string(kModelMaxBreakpoints - 1) + " operating speeds fit the module's model");
   for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
     const double s = o.speeds_rpm[i];
     if (!(s > net.operating_above_rpm) || s > 65535 || s != std::round(s))
       throw std::invalid_argument("reduce: speed " + std::to_string(s) + " must be a whole rpm above the operating threshold and <= 65535");
     if (i > 0 && !(s > o.speeds_rpm[i - 1])) throw std::invalid_argument("reduce: speeds must be strictly ascending");
   }
-  if (o.reference_channel < 0 || o.reference_channel >= kModelChannels || o.channel_node[static_cast<std::size_t>(o.reference_channel)] < 0)
-    throw std::invalid_argument("reduce: the reference channel must map to a node");
-  for (int ch = 0; ch < kModelChannels; ++ch) {
+  if (!(o.dt_s >= kModelMinDtMs * 1e-3 && o.dt_s <= kModelMaxDtMs * 1e-3))
+    throw std::invalid_argument("reduce: dt must be within 0.1 .. 60 s");
+  bool any = false;
+  for (int ch = 0; ch < 5; ++ch) {
     const int nd = o.channel_node[static_cast<std::size_t>(ch)];
     if (nd >= net.node_count()) throw std::invalid_argument("reduce: channel " + std::to_string(ch + 1) + " maps to a missing node");
     if (nd >= 0 && ch == o.ambient_channel) throw std::invalid_argument("reduce: the ambient channel cannot also map to a node");
+    any = any || nd >= 0;
   }
+  if (!any) throw std::invalid_argument("reduce: no channel maps to a node of the network");
+  const auto& ends = o.stop_phase_end_s;
+  for (double e : ends)
+    if (!(e >= 0 && e <= 65535) || e != std::round(e)) throw std::invalid_argument("reduce: stop phase ends must be whole seconds within 0..65535");
+  if ((ends[0] == 0 && ends[1] != 0) || (ends[1] != 0 && ends[1] <= ends[0]))
+    throw std::invalid_argument("reduce: stop phase ends must ascend, the first one set");
+
   ScheduledReduction out;
   ReducedModelF64& fm = out.model;
-  fm.dt_ms = static_cast<uint16_t>(std::lround(o.dt_s * 1000.0));
+  const double dt = o.dt_s;
+  fm.dt_ms = static_cast<uint16_t>(std::lround(dt * 1000.0));
   fm.n_breakpoints = static_cast<uint8_t>(o.speeds_rpm.size() + 1);
   fm.ambient_channel = o.ambient_channel < 0 ? kModelAmbientNone : static_cast<uint8_t>(o.ambient_channel);
   fm.enabled_mask = 0;
-  for (int ch = 0; ch < kModelChannels; ++ch)
-    if (o.channel_node[static_cast<std::size_t>(ch)] >= 0 || ch == o.ambient_channel) fm.enabled_mask |= static_cast<uint8_t>(1u << ch);
-  for (int ch = 0; ch < kModelChannels; ++ch) {
-    fm.warn_band_k[ch] = o.warn_K;
-    fm.alarm_band_k[ch] = o.alarm_K;
-    fm.abs_limit_c[ch] = o.abs_limit_c;
-    fm.max_rise_k_per_min[ch] = o.max_rise_K_per_min;
+  for (int k = 0; k < kModelEarlyStopPhases; ++k) fm.stop_end_s[k] = static_cast<uint16_t>(ends[static_cast<std::size_t>(k)]);
+  for (int ch = 0; ch < 5; ++ch) {
+    const auto c = static_cast<std::size_t>(ch);
+    const int nd = o.channel_node[c];
+    if (nd >= 0) {
+      fm.enabled_mask |= static_cast<uint8_t>(1u << ch);
+      fm.role[ch] = o.channel_role[c] >= 0 ? static_cast<uint8_t>(o.channel_role[c])
+                                            : role_for_node(net.nodes[static_cast<std::size_t>(nd)].name);
+      fm.detector[ch] = o.detector;
+    } else if (ch == o.ambient_channel) {
+      fm.enabled_mask |= static_cast<uint8_t>(1u << ch);
+      fm.role[ch] = kModelRoleAmbient;
+      fm.detector[ch].abs_limit_c = o.detector.abs_limit_c;
+    } else {
+      fm.role[ch] = kModelRoleNotModelled;
+    }
+    out.channels[c].node = nd;
+    out.channels[c].tau_s.assign(fm.n_breakpoints, 0.0);
+    out.channels[c].steady_rise_K.assign(fm.n_breakpoints, 0.0);
   }
-  const int ref_node = o.channel_node[static_cast<std::size_t>(o.reference_channel)];
-  const double dt = o.dt_s;
-  // operating breakpoints: DC-matched, u = 1 drives Q(w); state scaled so c_ref = 1
+
+  // Running breakpoints: per channel the DC-matched first-order step response closest to the
+  // node's (one assembly per speed serves the balanced analysis, the steady state and the fit).
+  const Eigen::VectorXd cold = Eigen::VectorXd::Zero(net.node_count());
   for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
-    SpeedReduction r = reduce_at_speed(net, params, o.speeds_rpm[i]);
-    const double scale = r.dc.c[ref_node];
-    if (!(std::abs(scale) > 0)) throw std::runtime_error("reduce: the reference node is not observable in the 1st-order model");
-    const double a = std::exp(r.dc.pole * dt);
-    const double bc = (r.dc.b * r.source_w)(0);
+    const double speed = o.speeds_rpm[i];
+    const NodeMatrices m = assemble(net, params, speed);
+    if (m.source_to_node.cols() == 0) throw std::runtime_error("reduction: the network has no heat sources (inputs)");
+    const ModalForm f = modal_form(m);
+    SpeedReduction r = balanced(m, f, speed, m.source_to_node);
+    r.source_w = m.source_w;
+    r.steady_rise_K = steady_rise(m);
+    r.bt_steady_rise_K = r.bt.c * (-(r.bt.b * m.source_w)(0) / r.bt.pole);
     const std::size_t bp = i + 1;
-    fm.speed_rpm[bp] = static_cast<uint16_t>(o.speeds_rpm[i]);
-    fm.a[bp] = a;
-    fm.b[bp] = scale * bc * (a - 1.0) / r.dc.pole;
-    const Eigen::VectorXd d = r.dc.d * r.source_w;
-    for (int ch = 0; ch < kModelChannels; ++ch) {
+    fm.speed_rpm[bp] = static_cast<uint16_t>(speed);
+    const double horizon = 5.0 / f.lambda.minCoeff();
+    for (int ch = 0; ch < 5; ++ch) {
       const int nd = o.channel_node[static_cast<std::size_t>(ch)];
-      fm.c[bp][ch] = nd >= 0 ? r.dc.c[nd] / scale : 0.0;
-      fm.d[bp][ch] = nd >= 0 ? d[nd] : 0.0;
+      if (nd < 0) continue;
+      const NodeResponse y = node_response(f, r.steady_rise_K, cold, nd);
+      const double p = minimax_pole(y, 0.0, horizon, std::min(10.0, dt));
+      const double a = std::exp(-p * dt);
+      fm.a[bp][ch] = a;
+      fm.b_K[bp][ch] = r.steady_rise_K[nd] * (1.0 - a);  // DC-matched: b / (1 - a) = steady rise
+      out.channels[static_cast<std::size_t>(ch)].tau_s[bp] = 1.0 / p;
+      out.channels[static_cast<std::size_t>(ch)].steady_rise_K[bp] = r.steady_rise_K[nd];
     }
     out.speeds.push_back(std::move(r));
   }
-  // cooling breakpoint: the stop state at the reference speed as an impulse input
-  const double ref_speed = o.cooling_reference_rpm > 0 ? o.cooling_reference_rpm : o.speeds_rpm.back();
-  const Eigen::VectorXd x_stop = steady_state_c(net, params, ref_speed, 0.0);
-  const double cool_speed = 0.0;
-  const NodeMatrices mc = assemble(net, params, cool_speed);
-  // impulse of B = C x_stop through A = -C^-1 G starts the free response at x_stop
-  out.cooling = reduce_assembled(net, mc, cool_speed, mc.capacitance.asDiagonal() * x_stop);
-  out.cooling.source_w = Eigen::VectorXd::Zero(1);
-  out.cooling.steady_rise_K = Eigen::VectorXd::Zero(net.node_count());
+
+  // Stopped: the free response from the stop state at the cooling reference speed.
+  const double ref_speed = o.cooling_reference_rpm > 0 ? o.cooling_reference_rpm
+                                                       : o.speeds_rpm[o.speeds_rpm.size() / 2];
   {
-    const double scale = out.cooling.dc.c[ref_node];
+    const NodeMatrices ms = assemble(net, params, ref_speed);
+    const Eigen::VectorXd x_stop = steady_rise(ms);
+    const NodeMatrices mc = assemble(net, params, 0.0);
+    const ModalForm fc = modal_form(mc);
+    // Analysis of the free response as an impulse of C x_stop (reported, as for the speeds).
+    out.cooling = balanced(mc, fc, 0.0, mc.capacitance.asDiagonal() * x_stop);
+    out.cooling.source_w = Eigen::VectorXd::Zero(1);
+    out.cooling.steady_rise_K = Eigen::VectorXd::Zero(net.node_count());
+    const double horizon = 5.0 / fc.lambda.minCoeff();
+    const Eigen::VectorXd zero = Eigen::VectorXd::Zero(net.node_count());
     fm.speed_rpm[0] = 0;
-    fm.a[0] = std::exp(out.cooling.dc.pole * dt);
-    fm.b[0] = 0.0;
-    // Output gains = the stop-state shape (continuous at the stop; the 1st-order model cannot
-    // follow the ~1000 s equalisation after it, which the deviation figures show). The pole is the
-    // DC-matched one of the free response (it preserves the integral of the decay).
-    (void)scale;
-    for (int ch = 0; ch < kModelChannels; ++ch) {
-      const int nd = o.channel_node[static_cast<std::size_t>(ch)];
-      fm.c[0][ch] = nd >= 0 ? x_stop[nd] / x_stop[ref_node] : 0.0;
-      fm.d[0][ch] = 0.0;
+    for (int ch = 0; ch < 5; ++ch) {
+      const auto c = static_cast<std::size_t>(ch);
+      const int nd = o.channel_node[c];
+      if (nd < 0) continue;
+      const NodeResponse y = node_response(fc, zero, x_stop, nd);
+      double t0 = 0.0;
+      for (int k = 0; k < kModelEarlyStopPhases; ++k) {
+        const double e = ends[static_cast<std::size_t>(k)];
+        if (e == 0) break;
+        const double p = matching_pole(y, t0, e);
+        fm.stop_a[k][ch] = std::exp(-p * dt);
+        out.channels[c].stop_tau_s[static_cast<std::size_t>(k)] = 1.0 / p;
+        t0 = e;
+      }
+      const double p = y.at(t0) > 0 ? minimax_pole(y, t0, std::max(horizon, t0 + 3600.0), std::min(10.0, dt))
+                                    : fc.lambda.minCoeff();
+      fm.a[0][ch] = std::exp(-p * dt);
+      fm.b_K[0][ch] = 0.0;
+      out.channels[c].tau_s[0] = 1.0 / p;
     }
   }
-  out.quantize_status = quantize(fm, out.quantized);
-  if (out.quantize_status.status == ModelStatus::kOk) {
-    out.blob.assign(kReducedModelBlobSize, 0);
-    encode(out.quantized, out.blob.data());
-  }
-  // deviation over a test profile: each breakpoint speed for 2 h (ascending), midway speeds, 3 h stop
+  requantize(out);
+
+  // Deviation over the reduction profile: each breakpoint speed 2 h and the midpoints 1 h
+  // (ascending), stop 3 h, lowest speed 1 h, stop 1 h.
   {
     std::vector<std::pair<double, double>> profile;  // (speed, seconds)
     for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
@@ -236,10 +363,12 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     Simulator full(net, params);
     full.reset(Eigen::VectorXd::Constant(net.node_count(), o.test_ambient_c));
     ReducedModelF64State sd;
+    init_at_ambient(fm, sd, o.test_ambient_c);
     ReducedModelState sq;
-    reset(sq);
     const auto amb_mk = static_cast<int32_t>(std::lround(o.test_ambient_c * 1000.0));
-    const bool quantized_ok = out.quantize_status.status == ModelStatus::kOk;
+    init_at_ambient(sq, amb_mk);
+    const bool quantized_ok = out.quantize_status.ok();
+    DeviationSummary& dev = out.deviation;
     for (const auto& seg : profile) {
       const long steps = std::lround(seg.second / dt);
       for (long k = 0; k < steps; ++k) {
@@ -248,17 +377,110 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
         step(fm, sd, seg.first, o.test_ambient_c, pd);
         if (quantized_ok) step(out.quantized, sq, static_cast<uint16_t>(seg.first), amb_mk, pq);
         const Eigen::VectorXd& xf = full.node_temp_c();
-        for (int ch = 0; ch < kModelChannels; ++ch) {
-          const int nd = o.channel_node[static_cast<std::size_t>(ch)];
+        for (int ch = 0; ch < 5; ++ch) {
+          const auto c = static_cast<std::size_t>(ch);
+          const int nd = o.channel_node[c];
           if (nd < 0) continue;
-          out.deviation.double_vs_full_max_K = std::max(out.deviation.double_vs_full_max_K, std::abs(pd[ch] - xf[nd]));
+          dev.double_vs_full_K[c] = std::max(dev.double_vs_full_K[c], std::abs(pd[ch] - xf[nd]));
           if (quantized_ok) {
             const double q = pq[ch] / 1000.0;
-            out.deviation.quantized_vs_full_max_K = std::max(out.deviation.quantized_vs_full_max_K, std::abs(q - xf[nd]));
-            out.deviation.quantized_vs_double_max_K = std::max(out.deviation.quantized_vs_double_max_K, std::abs(q - pd[ch]));
+            dev.residual_K[c].push_back(xf[nd] - q);
+            dev.quantized_vs_full_K[c] = std::max(dev.quantized_vs_full_K[c], std::abs(q - xf[nd]));
+            dev.quantized_vs_double_max_K = std::max(dev.quantized_vs_double_max_K, std::abs(q - pd[ch]));
           }
         }
         full.step(dt, seg.first, o.test_ambient_c);
+      }
+    }
+    for (int ch = 0; ch < 5; ++ch) {
+      dev.double_vs_full_max_K = std::max(dev.double_vs_full_max_K, dev.double_vs_full_K[static_cast<std::size_t>(ch)]);
+      dev.quantized_vs_full_max_K = std::max(dev.quantized_vs_full_max_K, dev.quantized_vs_full_K[static_cast<std::size_t>(ch)]);
+    }
+  }
+  // The duty cycle: the module model (fixed point) against the network, as a plant would run.
+  if (out.quantize_status.ok()) {
+    const double top = o.duty_max_rpm > 0 ? o.duty_max_rpm : o.speeds_rpm.back();
+    // The breakpoint speeds up to the top, the midpoints between them (the module interpolates
+    // there) and the top speed itself when it is none of those.
+    std::vector<double> speeds;
+    for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
+      if (o.speeds_rpm[i] <= top + 0.5) speeds.push_back(o.speeds_rpm[i]);
+      if (i + 1 < o.speeds_rpm.size()) {
+        const double mid = 0.5 * (o.speeds_rpm[i] + o.speeds_rpm[i + 1]);
+        if (mid <= top + 0.5) speeds.push_back(mid);
+      }
+    }
+    if (speeds.empty() || std::abs(speeds.back() - top) > 0.5) speeds.push_back(top);
+    std::vector<std::pair<double, double>> prof;  // (speed, seconds)
+    for (double sp : speeds)
+      for (const auto& seg : std::vector<std::pair<double, double>>{{sp, 7200}, {0, 900}, {sp, 3600}, {0, 1800}, {sp, 3600},
+                                                                    {0, 3600}, {sp, 3600}})
+        prof.push_back(seg);
+    for (auto it = speeds.rbegin(); it != speeds.rend(); ++it) prof.emplace_back(*it, 3600.0);
+    for (double sp : speeds) prof.emplace_back(sp, 3600.0);
+    // Restarts at another speed than before the stop (the bearings' fast modes start from a
+    // state the same-speed restarts never show): each speed, stop 30 min, the mirrored speed.
+    const std::size_t ns = speeds.size();
+    for (std::size_t i = 0; i < ns; ++i) {
+      prof.emplace_back(speeds[i], 3600.0);
+      prof.emplace_back(0.0, 1800.0);
+      prof.emplace_back(speeds[ns - 1 - i], 3600.0);
+    }
+    // A night: 8 h stopped, then the top speed and the lowest, 2 h each.
+    prof.emplace_back(0.0, 8 * 3600.0);
+    prof.emplace_back(speeds.back(), 7200.0);
+    prof.emplace_back(speeds.front(), 7200.0);
+    double total = 0;
+    for (const auto& seg : prof) total += seg.second;
+    out.duty.hours = total / 3600;
+    out.duty.profile = fmt::format("from cold, at each breakpoint speed and midpoint up to {:.0f} rpm: 2 h, stop 15 min, 1 h, "
+                                   "stop 30 min, 1 h, stop 60 min, 1 h; then 1 h steps down and up through those speeds; "
+                                   "restarts after 30 min at the mirrored speed (lowest <-> top); 8 h stopped, then top and "
+                                   "lowest speed 2 h each; ambient {:.0f} +- 1 degC (period 8 h); {:.0f} h",
+                                   top, o.test_ambient_c, total / 3600);
+    Simulator full(net, params);
+    full.reset(Eigen::VectorXd::Constant(net.node_count(), o.test_ambient_c));
+    ReducedModelState st;
+    init_at_ambient(st, static_cast<int32_t>(std::lround(o.test_ambient_c * 1000.0)));
+    double t = 0;
+    for (const auto& seg : prof) {
+      const long steps = std::lround(seg.second / dt);
+      for (long k = 0; k < steps; ++k, t += dt) {
+        const double amb = o.test_ambient_c + std::sin(2 * M_PI * t / (8 * 3600.0));
+        int32_t pq[5];
+        step(out.quantized, st, static_cast<uint16_t>(seg.first), static_cast<int32_t>(std::lround(amb * 1000)), pq);
+        for (int ch = 0; ch < 5; ++ch) {
+          const auto c = static_cast<std::size_t>(ch);
+          const int nd = o.channel_node[c];
+          if (nd < 0) continue;
+          const double r = full.node_temp_c()[nd] - pq[ch] / 1000.0;
+          out.duty.residual_K[c].push_back(r);
+          out.duty.max_abs_K[c] = std::max(out.duty.max_abs_K[c], std::abs(r));
+        }
+        full.step(dt, seg.first, amb);
+      }
+    }
+  }
+  // The design fault: design_heat_w more at each channel's node, from the steady state at the
+  // middle breakpoint speed, for 2 h.
+  {
+    const double sp = o.speeds_rpm[o.speeds_rpm.size() / 2];
+    out.design_fault.heat_w = o.design_heat_w;
+    out.design_fault.speed_rpm = sp;
+    for (int ch = 0; ch < 5; ++ch) {
+      const auto c = static_cast<std::size_t>(ch);
+      const int nd = o.channel_node[c];
+      if (nd < 0) continue;
+      // The network is linear: the fault's rise over the fault-free response is the extra heat
+      // through the step matrices of that speed alone (no sources, no ambient).
+      Simulator sim(net, params);
+      const StepMatrices& sm = sim.matrices(sp, dt);
+      Eigen::VectorXd extra = Eigen::VectorXd::Zero(net.node_count());
+      extra[nd] = o.design_heat_w;
+      Eigen::VectorXd x = Eigen::VectorXd::Zero(net.node_count());
+      for (int k = 0; k < static_cast<int>(7200 / dt); ++k) {
+        x = sm.Phi * x + sm.Gamma * extra;
+        out.design_fault.rise_K[c].push_back(x[nd]);
       }
     }
   }
@@ -276,6 +498,8 @@ nlohmann::json speed_json(const Network& net, const SpeedReduction& r) {
   j["speed_rpm"] = r.speed_rpm;
   j["hsv"] = vec(r.hsv);
   j["poles_per_s"] = vec(r.poles);
+  Eigen::VectorXd tau_min = (-r.poles).cwiseInverse() / 60.0;
+  j["time_constants_min"] = vec(tau_min);
   j["pole_bt"] = r.bt.pole;
   j["pole_dc"] = r.dc.pole;
   j["sctc_s"] = vec(r.sctc_s);
@@ -294,11 +518,16 @@ nlohmann::json speed_json(const Network& net, const SpeedReduction& r) {
   }
   return j;
 }
+nlohmann::json role_json(uint8_t role) {
+  if (role == kModelRoleUnchecked) return "unchecked";
+  const char* n = wire::channel_role_name(role);
+  return n ? nlohmann::json(n) : nlohmann::json(static_cast<int>(role));
+}
 }  // namespace
 
 nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r, const ReduceOptions& o) {
   nlohmann::json j;
-  j["format"] = "btsm-reduced-model-1";
+  j["format"] = "btsm-reduced-model-2";
   j["inputs"] = nlohmann::json::array();
   for (const auto& s : net.sources) j["inputs"].push_back(s.name + " (W)");
   j["outputs"] = nlohmann::json::array();
@@ -310,27 +539,59 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
   const ReducedModelF64& m = r.model;
   nlohmann::json sm;
   sm["dt_ms"] = m.dt_ms;
-  sm["reduction"] = "DC-matched (singular perturbation) balanced 1st order; state scaled so the reference channel's c = 1";
-  sm["reference_channel"] = o.reference_channel + 1;
+  sm["reduction"] =
+      "one first-order model per channel: running, the DC-matched first-order step response closest (max norm) to the "
+      "node's; stopped, the node's free response from the stop state (early phases exact at their ends, the last closest)";
   sm["ambient_channel"] = o.ambient_channel < 0 ? nlohmann::json(nullptr) : nlohmann::json(o.ambient_channel + 1);
   sm["enabled_mask"] = m.enabled_mask;
-  nlohmann::json chmap = nlohmann::json::array();
-  for (int ch = 0; ch < kModelChannels; ++ch) {
-    const int nd = o.channel_node[static_cast<std::size_t>(ch)];
-    chmap.push_back(nd >= 0 ? nlohmann::json(net.nodes[static_cast<std::size_t>(nd)].name)
-                            : (ch == o.ambient_channel ? nlohmann::json("ambient") : nlohmann::json(nullptr)));
+  sm["stop_phase_end_s"] = {m.stop_end_s[0], m.stop_end_s[1]};
+  nlohmann::json chans = nlohmann::json::array();
+  for (int ch = 0; ch < 5; ++ch) {
+    const auto c = static_cast<std::size_t>(ch);
+    const ChannelReduction& cr = r.channels[c];
+    nlohmann::json cj{{"channel", ch + 1}, {"role", role_json(m.role[ch])}};
+    if (cr.node >= 0) {
+      cj["node"] = net.nodes[static_cast<std::size_t>(cr.node)].name;
+      nlohmann::json tau = nlohmann::json::array(), rise = nlohmann::json::array();
+      for (int i = 0; i < m.n_breakpoints; ++i) {
+        tau.push_back(cr.tau_s[static_cast<std::size_t>(i)] / 60.0);
+        rise.push_back(cr.steady_rise_K[static_cast<std::size_t>(i)]);
+      }
+      cj["time_constant_min"] = tau;  // per breakpoint, 0 rpm = the late stop phase
+      cj["steady_rise_K"] = rise;
+      nlohmann::json st = nlohmann::json::array();
+      for (int k = 0; k < kModelEarlyStopPhases; ++k)
+        if (m.stop_end_s[k] != 0) st.push_back(cr.stop_tau_s[static_cast<std::size_t>(k)] / 60.0);
+      cj["stop_phase_time_constant_min"] = st;
+      const ChannelDetector& d = m.detector[ch];
+      cj["detector"] = {{"drift_K", d.drift_K},
+                        {"low_drift_K", d.low_drift_K},
+                        {"warn_evidence_K_min", d.warn_evidence_K_min},
+                        {"alarm_evidence_K_min", d.alarm_evidence_K_min},
+                        {"low_warn_evidence_K_min", d.low_warn_evidence_K_min},
+                        {"abs_limit_c", d.abs_limit_c},
+                        {"max_rise_K_per_min", d.max_rise_K_per_min}};
+      cj["deviation_vs_full_K"] = r.deviation.quantized_vs_full_K[c];
+    } else if (ch == o.ambient_channel) {
+      cj["node"] = "ambient";
+      cj["abs_limit_c"] = m.detector[ch].abs_limit_c;
+    } else {
+      cj["node"] = nullptr;
+    }
+    chans.push_back(cj);
   }
-  sm["channels"] = chmap;
+  sm["channels"] = chans;
   sm["breakpoints"] = nlohmann::json::array();
   for (int i = 0; i < m.n_breakpoints; ++i) {
-    nlohmann::json b{{"speed_rpm", m.speed_rpm[i]}, {"a", m.a[i]}, {"b", m.b[i]}};
-    b["c"] = std::vector<double>(m.c[i], m.c[i] + kModelChannels);
-    b["d"] = std::vector<double>(m.d[i], m.d[i] + kModelChannels);
+    nlohmann::json b{{"speed_rpm", m.speed_rpm[i]}};
+    b["a"] = std::vector<double>(m.a[i], m.a[i] + 5);
+    b["b_K"] = std::vector<double>(m.b_K[i], m.b_K[i] + 5);
     sm["breakpoints"].push_back(b);
   }
+  sm["stop_phases"] = nlohmann::json::array();
+  for (int k = 0; k < kModelEarlyStopPhases; ++k)
+    if (m.stop_end_s[k] != 0) sm["stop_phases"].push_back({{"end_s", m.stop_end_s[k]}, {"a", std::vector<double>(m.stop_a[k], m.stop_a[k] + 5)}});
   j["scheduled_model"] = sm;
-  j["diagnosis"] = {{"warn_band_K", o.warn_K}, {"alarm_band_K", o.alarm_K}, {"abs_limit_c", o.abs_limit_c},
-                    {"max_rise_K_per_min", o.max_rise_K_per_min}};
   j["quantization"] = {{"status", model_status_name(r.quantize_status.status)}, {"blob_bytes", r.blob.size()}};
   if (!r.blob.empty()) {
     // The blob itself, so `btsm flash-model REDUCED.json` needs no second file.
@@ -342,7 +603,8 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
                     {"profile_hours", r.deviation.profile_hours},
                     {"quantized_vs_full_max_K", r.deviation.quantized_vs_full_max_K},
                     {"double_vs_full_max_K", r.deviation.double_vs_full_max_K},
-                    {"quantized_vs_double_max_K", r.deviation.quantized_vs_double_max_K}};
+                    {"quantized_vs_double_max_K", r.deviation.quantized_vs_double_max_K},
+                    {"quantized_vs_full_per_channel_K", r.deviation.quantized_vs_full_K}};
   return j;
 }
 

@@ -26,6 +26,8 @@ SpindlePlant::SpindlePlant(PlantOptions opts) : opts_(std::move(opts)) {
       throw std::invalid_argument("plant: network '" + opts_.network + "' parameter " +
                                   net.params[i].name + " has no value");
   if (net.node_count() < 3) throw std::invalid_argument("plant: network needs at least 3 nodes");
+  for (int p : opts_.probe_place)
+    if (p < 0 || p > 2) throw std::invalid_argument("plant: probe_place entries must be 0 (rear bearing), 1 (housing) or 2 (front bearing)");
   // Channel j (1..3) is the node measured as "Tj" when the network says so, else node j-1.
   // The shaft (for a ch5 on the shaft end) likewise: "T4", else node 3.
   for (int j = 0; j < 4; ++j) {
@@ -103,9 +105,9 @@ double SpindlePlant::probe_temp_c(int ch) const {
 double SpindlePlant::point_temp_c(int ch) const {
   const auto& x = sim_->node_temp_c();
   switch (ch) {
-    case 1: return x[node_[0]];
-    case 2: return x[node_[1]];
-    case 3: return x[node_[2]];
+    case 1:
+    case 2:
+    case 3: return x[node_[opts_.probe_place[static_cast<std::size_t>(ch - 1)]]];
     case 4: return ambient_c();
     case 5:
       if (opts_.ch5 == Ch5Mode::ShaftEnd) return x[node_[3]];

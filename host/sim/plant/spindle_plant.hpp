@@ -31,6 +31,7 @@
 
 #include <Eigen/Core>
 
+#include <array>
 #include <memory>
 #include <string>
 #include <vector>
@@ -48,6 +49,10 @@ struct PlantOptions {
   HiddenEffects effects;
   Ch5Mode ch5 = Ch5Mode::HousingSurface;
   double ch5_surface_fraction = 0.5;  // 1, share of the housing rise seen on the surface
+  // Which place probes 1..3 are mounted at (0 rear bearing, 1 housing, 2 front bearing): {0, 1, 2}
+  // as labelled; e.g. {2, 1, 0} puts the probe of channel 1 on the front bearing and channel 3's
+  // on the rear one (probes swapped on the machine). Faults and effects keep their places.
+  std::array<int, 3> probe_place{{0, 1, 2}};
   // Initial node temperatures: ambient (cold machine) unless steady state at this speed is asked.
   bool start_steady = false;
   double start_steady_rpm = 0.0;      // rpm

@@ -1,5 +1,7 @@
 #include "host/sim/runner/sim_module.hpp"
 
+#include "common/channels.hpp"
+
 #include "host/sim/plant/probes.hpp"
 #include "host/sim/runner/pty_bridge.hpp"
 #include "host/thermal/recording.hpp"
@@ -59,7 +61,8 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
   board_ = opts_.board == BoardKind::Avr ? make_avr_board(b) : make_native_board(b);
   if (!opts_.truth_csv.empty()) {
     truth_ = std::make_unique<Truth>();
-    std::vector<std::string> cols{"T1", "T2", "T3", "T4", "T5"};
+    std::vector<std::string> cols;
+    for (int ch = 1; ch <= kChannels; ++ch) cols.push_back("T" + std::to_string(ch));
     const auto& net = plant_->network();
     truth_->nodes = size_t(net.node_count());
     for (const auto& n : net.nodes) cols.push_back("node_" + n.name);

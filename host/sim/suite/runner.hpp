@@ -20,6 +20,9 @@ struct RunnerOptions {
   double timeout_s = 1800;               // s per residual run; a run past it is killed and counted
   bool generate = true;                  // false: reuse the recordings already in out_dir
   bool run = true;                       // false: only generate
+  // true: a case whose residual.json already holds an answer (a `verdict`) written after its
+  // truth.json is scored as it is, not run again -- resumes a suite that was stopped part-way
+  bool reuse_answers = false;
   std::function<void(const std::string&)> progress;
 };
 

@@ -48,8 +48,10 @@ int main(int argc, char** argv) {
     std::printf("== detection benchmark (%s board, %s identification, %.0f s wall)\n", r.board.c_str(),
                 o.quick_identification ? "quick" : "full", r.wall_s);
     std::printf("-- production profile (seed %u): %s\n", o.profile.seed, r.profile.c_str());
-    std::printf("-- calibrated ALARM bands (K): T1 %.2f, T2 %.2f, T3 %.2f, T5 %.2f\n", r.alarm_band_K[0],
-                r.alarm_band_K[1], r.alarm_band_K[2], r.alarm_band_K[4]);
+    std::printf("-- calibrated detector, drift (K) / ALARM evidence (K min): T1 %.2f / %.1f, T2 %.2f / %.1f, "
+                "T3 %.2f / %.1f, T5 %.2f / %.1f\n",
+                r.drift_K[0], r.alarm_evidence_K_min[0], r.drift_K[1], r.alarm_evidence_K_min[1], r.drift_K[2],
+                r.alarm_evidence_K_min[2], r.drift_K[4], r.alarm_evidence_K_min[4]);
     std::printf("-- every fault run\n%s", r.runs_table().c_str());
     std::printf("-- per fault and place\n%s", r.summary_table().c_str());
     std::printf("-- %s\n", r.fault_free_line().c_str());

@@ -191,7 +191,10 @@ DetectionResult run_detection(const DetectionOptions& o) {
     throw std::runtime_error("commissioning failed at '" + step + "': " + e.what());
   }
   page.write((fs::path(o.out_dir) / "index.html").string());
-  for (int j = 0; j < wire::kChannels; ++j) res.alarm_band_K[j] = com.analysis.alarm_band_K[j];
+  for (int j = 0; j < wire::kChannels; ++j) {
+    res.drift_K[j] = com.analysis.drift_K[j];
+    res.alarm_evidence_K_min[j] = com.analysis.alarm_evidence_K_min[j];
+  }
 
   // --- 2. Production, fault-free, with the faults forked off at the chosen moments ------------------
   const ProductionProfile profile = make_production_profile(o.profile);
@@ -207,6 +210,13 @@ DetectionResult run_detection(const DetectionOptions& o) {
 
   FaultFreeRun& ff = res.fault_free;
   ff.hours = profile.duration_s() / 3600;
+  // The fault-free run sample by sample (every 6th: 30 s), so a false WARN can be traced to what
+  // the plant did and what the model predicted.
+  std::ofstream trace(fs::path(o.out_dir) / "fault_free.csv");
+  trace << "t_h,rpm";
+  for (int c = 1; c <= wire::kChannels; ++c) trace << fmt::format(",T{0}_c,P{0}_c,S{0}", c);
+  trace << "\n";
+  long trace_n = 0;
   int prev[wire::kChannels] = {};
   bool acked = false;
   size_t next_moment = 0;
@@ -271,6 +281,14 @@ DetectionResult run_detection(const DetectionOptions& o) {
       }
       // Fault-free accounting.
       ++ff.samples;
+      if (trace_n++ % 6 == 0) {
+        trace << fmt::format("{:.4f},{}", (t - t_prod) / 3600, s.speed_rpm);
+        for (int c = 0; c < wire::kChannels; ++c) {
+          const auto cell = [](int32_t v) { return v == wire::kMissing ? std::string() : fmt::format("{:.3f}", v / 1000.0); };
+          trace << "," << cell(s.temp_mK[c]) << "," << cell(s.predicted_mK[c]) << "," << state_of(s, c);
+        }
+        trace << "\n";
+      }
       bool any_warn = false, any_alarm = false;
       for (int c = 0; c < wire::kChannels; ++c) {
         const int st = state_of(s, c);

@@ -79,7 +79,8 @@ struct FaultFreeRun {
 struct DetectionResult {
   std::string board;
   std::string profile;               // ProductionProfile::describe()
-  double alarm_band_K[5] = {};       // the flashed model's calibrated ALARM bands (0: not diagnosed)
+  double drift_K[5] = {};            // the flashed model's calibrated detector: drift above the model, K
+  double alarm_evidence_K_min[5] = {};  // and its ALARM evidence threshold, K min (0: not diagnosed)
   std::vector<FaultRun> faults;
   FaultFreeRun fault_free;
   double wall_s = 0;

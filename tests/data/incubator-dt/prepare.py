@@ -4,11 +4,12 @@
 usage: python3 prepare.py [/work/shared/data/incubator-dt]
 Writes next to this script:
   calib2023_fit_0-55min.csv, calib2023_check_55-111min.csv   (20230501_calibration_empty_system.csv)
-  lid2021_fit_0-34min.csv,   lid2021_check_34-323min.csv     (lid_opening_experiment_mar_2021.csv, the
-                                                              first cut: no lid opening in the fit part)
   lid2021_events_fit_0-170min.csv, lid2021_events_check_170-323min.csv
-                                                             (the same run with the logged lid state as a
-                                                              declared event column, fit part with 6 openings)
+                                                             (lid_opening_experiment_mar_2021.csv with the logged
+                                                              lid state as a declared event column, fit part with
+                                                              6 openings)
+  lid2021_fit_0-34min.csv, lid2021_check_34-323min.csv       (the first cut, at the first opening: no opening
+                                                              in the fit part, no event column)
 
 Input mapping (the network format has one input column, `speed_rpm`, and sources proportional to
 (speed_rpm / speed_ref_rpm)^e): speed_rpm := electrical heater power in W while heater_on, else 0.
@@ -77,7 +78,6 @@ write("calib2023_check_55-111min.csv", chk, P_2023_W, ("t1", "t2"), common, chk[
 # --- 2021 lid-opening experiment: room = t1, box = t2, t3; first lid opening 2053 s after the first sample
 rows, t0 = load("lid_opening_experiment_mar_2021.csv", "t1", ("t2", "t3"))
 events = list(csv.DictReader(open(os.path.join(SRC, "lid_opening_events_mar_2021.csv"), newline="")))
-split = (int(events[0]["time"]) - t0) / 1e9
 common = [
     "source: GitHub INTO-CPS-Association/example_digital-twin_incubator @ 2f08c4f6916258582715e6fc705b4c315d55baaa, "
     "software/incubator/datasets/20210321_lid_opening_7pmodel/lid_opening_experiment_mar_2021.csv (no licence found), "
@@ -87,15 +87,16 @@ common = [
     "seven_parameters_model/best_parameters.py; not measured), 0 while off",
     "ambient_c: t1 (room sensor); box_avg = average_temperature = (t2 + t3)/2 (the two in-box sensors); fan on throughout",
 ]
-lid = [f"lid events (s since the first sample): " + ", ".join(
-    f"{e['code']} {(int(e['time']) - t0) / 1e9:.0f}" for e in events)]
+# The first cut, kept as the counter-example: fit on everything before the first lid opening (no opening,
+# no event column), check from the first opening on (the event times relative to it in its header).
+split = (int(events[0]["time"]) - t0) / 1e9
 write("lid2021_fit_0-34min.csv", [r for r in rows if r[0] < split], P_2021_W, ("t2", "t3"), common, 0.0)
 chk = [r for r in rows if r[0] >= split]
 lid_chk = [f"lid events (s since the first sample of THIS file): " + ", ".join(
     f"{e['code']} {(int(e['time']) - t0) / 1e9 - chk[0][0]:.0f}" for e in events)]
 write("lid2021_check_34-323min.csv", chk, P_2021_W, ("t2", "t3"), common + lid_chk, chk[0][0])
 
-# --- the same 2021 run, re-cut so that the fit part holds openings, with the logged lid state as a declared
+# --- cut so that the fit part holds openings, with the logged lid state as a declared
 # event column. The fit part ends at 170 min (10,200 s): six openings (34, 61, 86, 111, 137, 162 min) and the cup
 # of water put in at 137 min; the check part (170-323 min) holds the seventh opening and the water's removal
 # (294 min). Open/close come from the events file (10 s resolution, entered by hand during the experiment).

@@ -6,7 +6,7 @@
 //  2: Intel HEX: a parsed image, written out and parsed again, is the same image; errors are
 //     io::InputError only.
 #include "common/hex_text.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "fuzz_check.hpp"
 #include "host/io/hex.hpp"
 #include "host/io/input_error.hpp"

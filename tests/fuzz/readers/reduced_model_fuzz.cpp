@@ -3,7 +3,7 @@
 // gives bytes or throws io::InputError; then the local blob check (the firmware's rules) runs on
 // them. Property: a blob the check accepts decodes and re-encodes to the same 464 bytes (the
 // format has no byte the check ignores).
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "fuzz_check.hpp"
 #include "host/io/hex.hpp"
 #include "host/io/input_error.hpp"

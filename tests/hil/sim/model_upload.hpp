@@ -8,8 +8,9 @@
 // test::Capture& capture().
 #include "common/crc.hpp"
 #include "common/hmac.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "firmware/device_key.hpp"
+#include "host/thermal/model_reference.hpp"
 #include "wire_capture.hpp"
 
 #include <array>
@@ -22,33 +23,38 @@
 
 namespace btsm::test {
 
-// A plausible 1st-order model of the spindle (2 breakpoints: stopped, 6000 rpm) with wide
-// bands so it never raises an alarm on its own; `variant` changes the WARN band so two models
-// have different blobs and CRCs.
+// A plausible model of the spindle (2 breakpoints: stopped, 6000 rpm; one first-order model
+// per channel with the module's default channel roles) with wide detector thresholds so it never
+// raises an alarm on its own; `variant` changes the WARN threshold so two models have different
+// blobs and CRCs.
 inline std::vector<uint8_t> spindle_model_blob(int variant) {
-  ReducedModelF64 f;
+  thermal::ReducedModelF64 f;
   f.dt_ms = 5000;
   f.n_breakpoints = 2;
   f.speed_rpm[0] = 0;
   f.speed_rpm[1] = 6000;
-  const double tau_s[2] = {3000.0, 2650.0};
+  f.ambient_channel = 3;
+  f.enabled_mask = 0x1F;
+  const double tau_s[2][5] = {{13000, 13600, 17400, 0, 14600}, {2400, 2800, 2900, 0, 2600}};  // stopped, 6000 rpm
   const double rise_k[5] = {13.6, 12.2, 10.7, 0.0, 6.1};  // steady rises at 6000 rpm
-  for (int k = 0; k < 2; ++k) {
-    f.a[k] = std::exp(-5.0 / tau_s[k]);
-    f.b[k] = k == 0 ? 0.0 : (1.0 - f.a[k]);  // x settles to 1 at 6000 rpm
-    for (int j = 0; j < 5; ++j) {
-      f.c[k][j] = rise_k[j];
-      f.d[k][j] = 0.0;
+  const uint8_t roles[5] = {3, 4, 2, kModelRoleAmbient, kModelRoleUnchecked};
+  for (int j = 0; j < 5; ++j) {
+    f.role[j] = roles[j];
+    f.detector[j].drift_K = 5.0;
+    f.detector[j].low_drift_K = 5.0;
+    f.detector[j].warn_evidence_K_min = 200.0 + variant;
+    f.detector[j].alarm_evidence_K_min = 400.0;
+    f.detector[j].low_warn_evidence_K_min = 200.0;
+    f.detector[j].abs_limit_c = 120.0;
+    f.detector[j].max_rise_K_per_min = 0.0;
+    if (j == 3) continue;
+    for (int k = 0; k < 2; ++k) {
+      f.a[k][j] = std::exp(-5.0 / tau_s[k][j]);
+      f.b_K[k][j] = k == 0 ? 0.0 : rise_k[j] * (1.0 - f.a[k][j]);
     }
   }
-  for (int j = 0; j < 5; ++j) {
-    f.warn_band_k[j] = 20.0 + variant;
-    f.alarm_band_k[j] = 40.0;
-    f.abs_limit_c[j] = 120.0;
-    f.max_rise_k_per_min[j] = 0.0;
-  }
   ReducedModel q{};
-  const ModelCheck c = quantize(f, q);
+  const ModelCheck c = thermal::quantize(f, q);
   if (c.status != ModelStatus::kOk) throw std::runtime_error(std::string("test model: ") + model_status_name(c.status));
   std::vector<uint8_t> blob(kReducedModelBlobSize);
   encode(q, blob.data());

@@ -1,14 +1,16 @@
-// The common/ kernels with an AVR-only form (inline assembly in common/reduced_model.hpp) run on
-// the simulated ATmega328P (firmware/numeric_probe.cpp, built with the firmware's compiler and
-// flags) and are compared with the exact integer result on the host, operand by operand:
+// The common/ kernels with an AVR-only form (inline assembly, union reads of 64-bit products in
+// common/model_step.hpp) run on the simulated ATmega328P (firmware/numeric_probe.cpp, built with the
+// firmware's compiler and flags) and are compared with the exact integer result on the host, operand
+// by operand:
 // random operands over the whole range plus the edge cases (zero, +-1, the int32 limits, the
 // fraction's ends and the rounding tie). A wrong carry or register in the assembly shows here;
 // the host build never compiles it. Likewise the integer sample path (the Pt1000 table inverse,
 // the fixed-point kernels and the Kalman filter's setup and gains), whose C++ could compute
 // differently where int is 16 bits: bit for bit against the host build.
 #include "boards/sim/simavr/simavr_harness.hpp"
+#include "common/fixed_point.hpp"
 #include "common/kalman.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_step.hpp"
 #include "common/rtd.hpp"
 
 #include <gtest/gtest.h>
@@ -84,6 +86,18 @@ class AvrNumeric : public ::testing::Test {
     const auto r = exchange(cmd, 6);
     high = r.empty() ? 0 : get32(r.data());
     low = r.empty() ? 0 : uint16_t(r[4] | r[5] << 8);
+  }
+
+  // One channel's model step on the target: the new state and the prediction.
+  std::pair<int32_t, int32_t> avr_step(int32_t a, int32_t b, int32_t t, int32_t amb, bool running) {
+    std::vector<uint8_t> cmd{'S'};
+    put32(cmd, uint32_t(a));
+    put32(cmd, uint32_t(b));
+    put32(cmd, uint32_t(t));
+    put32(cmd, uint32_t(amb));
+    cmd.push_back(running ? 1 : 0);
+    const auto r = exchange(cmd, 8);
+    return r.empty() ? std::make_pair(0, 0) : std::make_pair(int32_t(get32(r.data())), int32_t(get32(r.data() + 4)));
   }
 
   std::unique_ptr<SimavrHarness> h;
@@ -208,6 +222,40 @@ TEST_F(AvrNumeric, InterpolationMatchesTheExactRoundingOnTheTarget) {
     const int32_t want = lerp_reference(p0, p1, f);
     ASSERT_EQ(detail_rm::lerp_q(p0, p1, f), want) << "host " << p0 << " " << p1 << " " << f;
     ASSERT_EQ(avr_lerp(p0, p1, f), want) << "avr " << p0 << " " << p1 << " " << f;
+  }
+}
+
+// The model step on the target against the exact int64 form: T' = T_amb + round(a (T - T_amb)) +
+// u b (ties away from zero), clamped; prediction = T rounded to mK (ties up).
+TEST_F(AvrNumeric, ModelStepMatchesTheExactFormOnTheTarget) {
+  std::mt19937 rng(13);
+  struct Case {
+    int32_t a, b, t, amb;
+    bool run;
+  };
+  std::vector<Case> cases = {{0, 0, 0, 0, false},
+                             {(1 << 30) - 1, 0, (1 << 30) - 1, -1048575, true},
+                             {(1 << 30) - 1, 1024000000, -(1 << 30) + 1, 1048575, true},
+                             {1 << 29, 0, 1, 0, false},   // a (T - T_amb) = 1/2: tie, away from zero
+                             {1 << 29, 0, -1, 0, false},  // -1/2
+                             {1 << 29, 7, 3, 0, true}};
+  for (int i = 0; i < 1500; ++i) {
+    const int32_t a = int32_t(rng() % (1u << 30));
+    const int32_t amb = int32_t(rng() % 2097151) - 1048575;
+    const int32_t t = int32_t(int64_t(rng() % 2147483647u) - 1073741823);
+    const double bound = 1.024e9 * ((1 << 30) - a) / double(1 << 30);
+    const int32_t b = int32_t((double(rng() % 2000001) / 1e6 - 1.0) * bound);
+    cases.push_back({a, b, t, amb, (rng() & 1) != 0});
+  }
+  for (const Case& c : cases) {
+    const int64_t amb = int64_t(c.amb) * 1024;
+    int64_t next = amb + fx::shift_right_round(int64_t(c.a) * (c.t - amb), 30, fx::Rounding::kNearestHalfAway);
+    if (c.run) next += c.b;
+    next = std::clamp<int64_t>(next, -kModelStateLimit, kModelStateLimit);
+    const int32_t pred = int32_t(fx::shift_right_round(int64_t(c.t) + 512, 10, fx::Rounding::kFloor));
+    const auto [t_avr, pred_avr] = avr_step(c.a, c.b, c.t, c.amb, c.run);
+    ASSERT_EQ(t_avr, int32_t(next)) << c.a << " " << c.b << " " << c.t << " " << c.amb;
+    ASSERT_EQ(pred_avr, pred) << c.t;
   }
 }
 

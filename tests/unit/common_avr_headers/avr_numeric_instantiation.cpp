@@ -6,7 +6,8 @@
 #include "fixed_point.hpp"
 #include "kalman.hpp"
 #include "ratiometric.hpp"
-#include "reduced_model.hpp"
+#include "model_blob.hpp"
+#include "model_step.hpp"
 #include "rtd.hpp"
 
 volatile uint32_t g_code = 0x2F0000UL;
@@ -19,6 +20,7 @@ btsm::ScalarKalman<float> kalman[btsm::kModelChannels];
 btsm::KalmanFixedSetup kalman_fixed_setup;
 btsm::KalmanFixedChannel kalman_fixed[btsm::kModelChannels];
 btsm::Diagnosis<btsm::kModelChannels> diag;
+btsm::ResidualEvidence evidence[btsm::kModelChannels];
 btsm::RiseRate<13> rise[btsm::kModelChannels];
 
 int main() {
@@ -35,7 +37,9 @@ int main() {
     kalman[j].update(t.value);
     const int32_t t_mK = static_cast<int32_t>(kalman[j].estimate() * 1000.0f);
     in[j].measured_mK = t_mK;
-    in[j].predicted_mK = predicted[j];
+    evidence[j].add(t_mK - predicted[j], 500, 700, 1000000);
+    in[j].evidence_high = evidence[j].high();
+    in[j].evidence_low = evidence[j].low();
     in[j].rise_mK_per_min = rise[j].push(t_mK);
     in[j].fault = !r.ok() || !t.ok();
   }

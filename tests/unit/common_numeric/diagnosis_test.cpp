@@ -1,5 +1,5 @@
 // Diagnosis state machine: one test per transition of the diagram in common/diagnosis.hpp, plus
-// persistence, hysteresis, the overall ranking and the rise-rate helper.
+// persistence, hysteresis, the overall ranking, the residual evidence and the rise-rate helper.
 #include "common/diagnosis.hpp"
 
 #include <gtest/gtest.h>
@@ -11,15 +11,17 @@
 namespace btsm {
 namespace {
 
-// Limits: warn 1.5 K, alarm 4 K residual; exit at 80 %: 1.2 K / 3.2 K; absolute 80 degC (exit 79);
-// rise 3 K/min (exit 2.4). N = 3, Mw = 3, Ma = 5, Mf = 2.
+// Limits: warn 1500, alarm 4000 mK samples of upper evidence, warn 1500 of lower evidence; exit at
+// 80 %: 1200 / 3200; absolute 80 degC (exit 79); rise 3 K/min (exit 2.4). N = 3, Mw = 3, Ma = 5,
+// Mf = 2. residual(e) feeds evidence e: upper for e > 0, lower for e < 0.
 struct DiagTransition : ::testing::Test {
   DiagChannelLimits lim;
   DiagTiming t;
   DiagChannel ch;
   DiagTransition() {
-    lim.warn_band_mK = 1500;
-    lim.alarm_band_mK = 4000;
+    lim.warn_evidence = 1500;
+    lim.alarm_evidence = 4000;
+    lim.low_warn_evidence = 1500;
     lim.abs_limit_mK = 80000;
     lim.max_rise_mK_per_min = 3000;
     t.enter_samples = 3;
@@ -29,10 +31,11 @@ struct DiagTransition : ::testing::Test {
     t.hysteresis_permille = 200;
     t.abs_hysteresis_mK = 1000;
   }
-  static DiagInput residual(int32_t r_mK, int32_t measured = 40000) {
+  static DiagInput residual(int32_t e, int32_t measured = 40000) {
     DiagInput in;
     in.measured_mK = measured;
-    in.predicted_mK = measured - r_mK;
+    in.evidence_high = e > 0 ? e : 0;
+    in.evidence_low = e < 0 ? -e : 0;
     in.rise_mK_per_min = 0;
     return in;
   }
@@ -56,7 +59,7 @@ TEST_F(DiagTransition, NormalToWarnNeedsNConsecutiveSamples) {
   EXPECT_EQ(feed(residual(2000), 2), DiagState::kNormal);
   EXPECT_EQ(feed(residual(0)), DiagState::kNormal);  // run broken: persistence restarts
   EXPECT_EQ(feed(residual(-2000), 2), DiagState::kNormal);
-  EXPECT_EQ(feed(residual(-2000)), DiagState::kWarn);  // |residual| counts, either sign
+  EXPECT_EQ(feed(residual(-2000)), DiagState::kWarn);  // the lower evidence warns too
   EXPECT_TRUE(ch.reasons() & kReasonResidualWarn);
 }
 
@@ -213,15 +216,15 @@ TEST(DiagnosisOverall, WorstStateRanksAlarmAboveFault) {
   d.timing.enter_samples = 1;
   d.enabled_mask = 0x0F;  // channel 4 disabled: its fault does not count
   DiagInput in[5];
-  for (auto& i : in) i.measured_mK = 30000, i.predicted_mK = 30000, i.rise_mK_per_min = 0;
+  for (auto& i : in) i.measured_mK = 30000, i.evidence_high = 0, i.evidence_low = 0, i.rise_mK_per_min = 0;
   in[4].fault = true;
   EXPECT_EQ(d.update(in), DiagState::kNormal);
   in[1].fault = true;
   EXPECT_EQ(d.update(in), DiagState::kSensorFault);
-  in[2].measured_mK = 36000;  // residual 6 K -> ALARM outranks the fault
+  in[2].evidence_high = 600000;  // -> ALARM outranks the fault
   EXPECT_EQ(d.update(in), DiagState::kAlarm);
   EXPECT_EQ(d.channel(2).state(), DiagState::kAlarm);
-  in[2].measured_mK = 30000;
+  in[2].evidence_high = 0;
   in[1].fault = false;
   d.acknowledge_all();
   d.update(in);
@@ -229,6 +232,52 @@ TEST(DiagnosisOverall, WorstStateRanksAlarmAboveFault) {
   EXPECT_EQ(d.overall(), DiagState::kSensorFault);  // channel 1 still clearing (Mf = 3)
   d.update(in);
   EXPECT_EQ(d.update(in), DiagState::kNormal);
+}
+
+// The lower evidence only warns: a probe colder than its model is no overheating.
+TEST_F(DiagTransition, LowerEvidenceNeverAlarms) {
+  EXPECT_EQ(feed(residual(-900000), 100), DiagState::kWarn);
+  lim.low_warn_evidence = 0;  // off
+  DiagChannel other;
+  for (int i = 0; i < 10; ++i) EXPECT_EQ(other.update(residual(-900000), lim, t), DiagState::kNormal);
+}
+
+// The CUSUM statistics: drained by the drift, piled up by the excess, never below 0 nor above the
+// cap, and the residual clamped so no sum leaves int32.
+TEST(ResidualEvidence, AccumulatesTheExcessOverTheDriftBothWays) {
+  ResidualEvidence e;
+  for (int i = 0; i < 100; ++i) e.add(300, 500, 500, 100000);
+  EXPECT_EQ(e.high(), 0);
+  EXPECT_EQ(e.low(), 0);
+  e.add(1700, 500, 500, 100000);
+  EXPECT_EQ(e.high(), 1200);
+  e.add(1700, 500, 500, 100000);
+  EXPECT_EQ(e.high(), 2400);
+  e.add(-100, 500, 500, 100000);
+  EXPECT_EQ(e.high(), 1800);
+  EXPECT_EQ(e.low(), 0);
+  for (int i = 0; i < 1000; ++i) e.add(8000000, 500, 500, 100000);
+  EXPECT_EQ(e.high(), 100000) << "capped";
+  e.add(-2147483647, 0, 0, 100000);
+  EXPECT_EQ(e.high(), 0);
+  for (int i = 0; i < 10; ++i) e.add(4194304, 0, 0, 2000000000);
+  EXPECT_EQ(e.high(), ResidualEvidence::kMax) << "24 bits, whatever the cap";
+  e.add(-2147483647, 0, 0, 100000);
+  EXPECT_EQ(e.low(), 100000);
+  e.reset();
+  EXPECT_EQ(e.high() + e.low(), 0);
+  // Each side forgives its own drift.
+  e.add(-800, 500, 1000, 100000);
+  EXPECT_EQ(e.low(), 0);
+  e.add(800, 1000, 500, 100000);
+  EXPECT_EQ(e.high(), 0);
+  e.add(-1800, 500, 1000, 100000);
+  EXPECT_EQ(e.low(), 800);
+  // A constant excess r above the drift k reaches a threshold h after ceil(h / (r - k)) samples.
+  ResidualEvidence f;
+  int n = 0;
+  while (f.high() <= 24000) f.add(1500, 500, 500, 48000), ++n;
+  EXPECT_EQ(n, 25);
 }
 
 // push_scaled (the firmware's: the scale computed once per sample period, integer clamp and

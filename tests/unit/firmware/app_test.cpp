@@ -337,6 +337,46 @@ TEST_F(AppFixture, KeylessHostWritesNoEepromByte) {
   EXPECT_EQ(info().model_seq, 1u);
 }
 
+// The model's channel map against the module's roles: a channel whose configured role is not the
+// node its model was reduced for gets no prediction (so no model checks), and no channel does when
+// the model's ambient channel is no longer the ambient; restoring the role restores them.
+TEST_F(AppFixture, ChannelsWhoseRoleDisagreesWithTheModelGetNoPrediction) {
+  boot();
+  run(6.0);
+  ASSERT_EQ(upload(test::model_blob(), test::dev_key()), 0);
+  auto set_role = [&](uint8_t channel_index, wire::ChannelRole role) {
+    std::vector<uint8_t> p(5);
+    p[0] = wire::channel_role_key(channel_index);
+    put_le32(p.data() + 1, static_cast<uint32_t>(role));
+    ASSERT_EQ(ack_of(request(wire::MsgType::SetConfig, p, wire::MsgType::Ack)).status, 0);
+  };
+  auto last = [&] {
+    link->frames.clear();
+    run(11.0);
+    const auto s = samples();
+    EXPECT_FALSE(s.empty());
+    return s.empty() ? wire::Sample{} : s.back();
+  };
+  wire::Sample s = last();
+  for (int j : {0, 1, 2, 4}) EXPECT_NE(s.predicted_mK[j], wire::kMissing) << j;
+  // Probes swapped in the configuration: ch1 now says front bearing, ch3 rear bearing.
+  set_role(0, wire::ChannelRole::FrontBearing);
+  set_role(2, wire::ChannelRole::RearBearing);
+  s = last();
+  EXPECT_EQ(s.predicted_mK[0], wire::kMissing);
+  EXPECT_EQ(s.predicted_mK[2], wire::kMissing);
+  EXPECT_NE(s.predicted_mK[1], wire::kMissing) << "the housing's role still matches";
+  EXPECT_NE(s.predicted_mK[4], wire::kMissing) << "a channel the model does not check (role unchecked)";
+  set_role(0, wire::ChannelRole::RearBearing);
+  set_role(2, wire::ChannelRole::FrontBearing);
+  set_role(3, wire::ChannelRole::Spare);  // the model's ambient channel is no ambient any more
+  s = last();
+  for (int j = 0; j < 5; ++j) EXPECT_EQ(s.predicted_mK[j], wire::kMissing) << j;
+  set_role(3, wire::ChannelRole::Ambient);
+  s = last();
+  for (int j = 0; j < 5; ++j) EXPECT_NE(s.predicted_mK[j], wire::kMissing) << j;
+}
+
 TEST_F(AppFixture, DeviceWithoutKeyRefusesModelWrites) {
   sim::NativeBoardOptions o;
   o.erased_key = true;

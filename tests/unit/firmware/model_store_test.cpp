@@ -2,6 +2,8 @@
 #include <gtest/gtest.h>
 
 #include <cstring>
+#include <fstream>
+#include <iterator>
 #include <random>
 
 #include "common/hmac.hpp"
@@ -90,6 +92,25 @@ std::vector<uint8_t> active_blob(ModelStore<Storage>& store) {
   return b;
 }
 
+// Field by field (the structs have padding).
+void expect_same(const ModelRuntime& rt, const ModelSchedule& s, const ChannelLimits* l) {
+  EXPECT_EQ(rt.n_breakpoints, s.n_breakpoints);
+  EXPECT_EQ(rt.ambient_channel, s.ambient_channel);
+  EXPECT_EQ(rt.enabled_mask, s.enabled_mask);
+  EXPECT_EQ(rt.dt_ms, s.dt_ms);
+  for (int k = 0; k < kModelEarlyStopPhases; ++k) EXPECT_EQ(rt.stop_end_s[k], s.stop_end_s[k]);
+  for (int j = 0; j < kModelChannels; ++j) {
+    EXPECT_EQ(rt.role[j], s.role[j]) << j;
+    EXPECT_EQ(rt.limits[j].drift_mK, l[j].drift_mK) << j;
+    EXPECT_EQ(rt.limits[j].low_drift_mK, l[j].low_drift_mK) << j;
+    EXPECT_EQ(rt.limits[j].warn_evidence, l[j].warn_evidence) << j;
+    EXPECT_EQ(rt.limits[j].alarm_evidence, l[j].alarm_evidence) << j;
+    EXPECT_EQ(rt.limits[j].low_warn_evidence, l[j].low_warn_evidence) << j;
+    EXPECT_EQ(rt.limits[j].abs_limit_mK, l[j].abs_limit_mK) << j;
+    EXPECT_EQ(rt.limits[j].max_rise_mK_per_min, l[j].max_rise_mK_per_min) << j;
+  }
+}
+
 TEST(ModelStore, EmptyEepromHasNoModel) {
   sim::NativeBoard board(fast_eeprom());
   ModelStore<Storage> store(board.storage);
@@ -123,19 +144,9 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
   ModelRuntime parsed;
   ASSERT_TRUE(decode(blob.data(), blob.size(), ref).ok());
   ASSERT_TRUE(again.load_slot(0, parsed).ok());
-  EXPECT_EQ(parsed.n_breakpoints, ref.n_breakpoints);
-  EXPECT_EQ(parsed.ambient_channel, ref.ambient_channel);
-  EXPECT_EQ(parsed.enabled_mask, ref.enabled_mask);
-  for (int j = 0; j < kModelChannels; ++j) {
-    EXPECT_EQ(parsed.limits[j].warn_band_mK, ref.limits[j].warn_band_mK);
-    EXPECT_EQ(parsed.limits[j].alarm_band_mK, ref.limits[j].alarm_band_mK);
-    EXPECT_EQ(parsed.limits[j].abs_limit_mK, ref.limits[j].abs_limit_mK);
-    EXPECT_EQ(parsed.limits[j].max_rise_mK_per_min, ref.limits[j].max_rise_mK_per_min);
-  }
-  EXPECT_EQ(loaded.dt_ms, ref.dt_ms);
-  EXPECT_EQ(loaded.n_breakpoints, ref.n_breakpoints);
-  EXPECT_EQ(std::memcmp(loaded.speed_rpm, ref.speed_rpm, sizeof ref.speed_rpm), 0);
-  EXPECT_EQ(loaded.limits[0].alarm_band_mK, ref.limits[0].alarm_band_mK);
+  expect_same(parsed, ref.schedule, ref.limits);
+  expect_same(loaded, ref.schedule, ref.limits);
+  EXPECT_EQ(loaded.role[0], 3) << "the channel map survives the reboot";
   // A second model goes to the other slot with the next sequence number.
   const auto blob2 = test::model_blob(1.0);
   ASSERT_EQ(upload(board, again, loaded, blob2, key, key).commit, Nack::Ok);
@@ -147,36 +158,85 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
 }
 
 // The firmware steps the model with coefficients read from EEPROM and interpolated member by
-// member (only those of modelled channels); the common step() interpolates a whole decoded model.
-// Same predictions and state, bit for bit, at breakpoints, inside segments, above the top one
-// and at standstill, whichever channel is ambient or disabled.
+// member (only those of modelled channels), or the stop phase's poles; the common step()
+// interpolates a whole decoded model. Same predictions and states, bit for bit, at breakpoints,
+// inside segments, above the top one and through every stop phase, whichever channel is ambient
+// or not modelled.
 TEST(ModelStore, StepFromEepromMatchesTheCommonModelAtEverySpeed) {
   const auto key = test::dev_key();
-  for (const uint8_t mask : {uint8_t(0x1F), uint8_t(0x0F), uint8_t(0x1B)}) {
+  struct Map {
+    uint8_t mask, ambient;
+  };
+  for (const Map map : {Map{0x1F, 3}, Map{0x0F, 3}, Map{0x1B, 4}, Map{0x17, 0xFF}}) {
     sim::NativeBoard board(fast_eeprom());
-    auto blob = test::model_blob(0.5);
-    blob[kBlobOffEnabledMask] = mask;  // channel 4 disabled (0x0F) or channel 3 (0x1B)
-    test::fix_blob_crc(blob);
+    thermal::ReducedModelF64 f = test::model_f64(0.5);
+    f.enabled_mask = map.mask;
+    f.ambient_channel = map.ambient;
+    for (int j = 0; j < kModelChannels; ++j) {
+      const bool on = (map.mask >> j) & 1U;
+      f.role[j] = j == map.ambient ? kModelRoleAmbient : (on ? kModelRoleUnchecked : kModelRoleNotModelled);
+      for (int i = 0; i < 3; ++i)
+        if (on && j != map.ambient && f.a[i][j] == 0.0) f.a[i][j] = 0.997, f.b_K[i][j] = i ? 0.001 * i : 0.0;
+      for (int k = 0; k < 2; ++k)
+        if (on && j != map.ambient && f.stop_a[k][j] == 0.0) f.stop_a[k][j] = 0.99;
+    }
     ReducedModel ref;
-    ASSERT_TRUE(decode(blob.data(), blob.size(), ref).ok()) << int(mask);
+    ASSERT_TRUE(thermal::quantize(f, ref).ok()) << int(map.mask);
+    std::vector<uint8_t> blob(kReducedModelBlobSize);
+    encode(ref, blob.data());
     ModelStore<Storage> store(board.storage);
     ModelRuntime m;
     store.boot(m);
-    ASSERT_EQ(upload(board, store, m, blob, key, key).commit, Nack::Ok) << int(mask);
+    ASSERT_EQ(upload(board, store, m, blob, key, key).commit, Nack::Ok) << int(map.mask);
     ReducedModelState fw, common;
-    fw.x_q20 = common.x_q20 = 3 << 20;  // 3 K above ambient
+    const int32_t measured[kModelChannels] = {31000, 26000, 24000, 21500, 23000};
+    ASSERT_TRUE(store.init_state(m, fw, 21500, measured));
+    ASSERT_TRUE(init_from_measurement(ref.schedule.ambient_channel, ref.schedule.enabled_mask, common, 21500, measured));
     std::mt19937 rng(5);
     std::vector<uint16_t> speeds = {0, 6000, 5999, 6001, 3000, 3000, 12000, 13000, 1, 11999, 0, 65534};
     for (int i = 0; i < 300; ++i) speeds.push_back(uint16_t(rng() % 14000));
+    for (int i = 0; i < 600; ++i) speeds.push_back(0);  // 50 min stopped: every stop phase
+    for (int i = 0; i < 100; ++i) speeds.push_back(uint16_t(rng() % 3 ? 0 : rng() % 14000));
+    int k = 0;
     for (const uint16_t rpm : speeds) {
       int32_t p_fw[kModelChannels], p_common[kModelChannels];
-      store.step_model(m, fw, rpm, 21500, p_fw);
-      step(ref, common, rpm, 21500, p_common);
-      ASSERT_EQ(fw.x_q20, common.x_q20) << "mask " << int(mask) << " rpm " << rpm;
+      const int32_t ambient = 21500 + (k++ % 7) * 100;
+      store.step_model(m, fw, rpm, ambient, p_fw);
+      step(ref, common, rpm, ambient, p_common);
+      ASSERT_EQ(std::memcmp(&fw, &common, sizeof fw), 0) << "mask " << int(map.mask) << " rpm " << rpm << " step " << k;
       for (int j = 0; j < kModelChannels; ++j)
-        ASSERT_EQ(p_fw[j], p_common[j]) << "mask " << int(mask) << " rpm " << rpm << " channel " << j;
+        ASSERT_EQ(p_fw[j], p_common[j]) << "mask " << int(map.mask) << " rpm " << rpm << " channel " << j;
     }
   }
+}
+
+// A module updated to this firmware with a version-1 model in its EEPROM (an intact slot: marker,
+// sequence, CRC all good) does not run it: the model state is Rejected, no prediction is made from
+// bytes of another layout.
+TEST(ModelStore, StoredVersionOneModelIsNotLoadedAtBoot) {
+  std::ifstream f(std::string(BTSM_TEST_DATA_DIR) + "/model-blob-v1/spindle_v1.bin", std::ios::binary);
+  const std::vector<uint8_t> v1((std::istreambuf_iterator<char>(f)), std::istreambuf_iterator<char>());
+  ASSERT_EQ(v1.size(), kReducedModelBlobSize);
+  sim::NativeBoard board(fast_eeprom());
+  uint8_t seq[4];
+  put_le32(seq, 1);
+  std::vector<uint8_t>& ee = board.eeprom();
+  const uint16_t base = eeprom_layout::slot_addr(0);
+  ee[base + eeprom_layout::kHdrMarker] = eeprom_layout::kMarker0;
+  ee[base + eeprom_layout::kHdrMarker + 1] = eeprom_layout::kMarker1;
+  std::memcpy(&ee[base + eeprom_layout::kHdrSeq], seq, 4);
+  put_le32(&ee[base + eeprom_layout::kHdrCrc], crc32(v1.data(), v1.size(), crc32(seq, 4)));
+  put_le16(&ee[base + eeprom_layout::kHdrLen], eeprom_layout::kBlobSize);
+  std::memcpy(&ee[eeprom_layout::blob_addr(0)], v1.data(), v1.size());
+  ModelStore<Storage> store(board.storage);
+  ModelRuntime m;
+  store.boot(m);
+  EXPECT_EQ(store.state(), wire::ModelState::Rejected);
+  EXPECT_FALSE(store.active());
+  ModelRuntime parsed;
+  const ModelCheck c = store.load_slot(0, parsed);
+  EXPECT_EQ(c.status, ModelStatus::kBadVersion);
+  EXPECT_EQ(c.channel, 1) << "the version found";
 }
 
 struct Rejection {
@@ -196,8 +256,15 @@ TEST(ModelStore, InvalidBlobsAreNackedAndTheOldModelStaysActive) {
       {"NaN-like gain out of range (b = max)",
        [](std::vector<uint8_t>& b) { put_le32(b.data() + kBlobOffBreakpoints + kBlobBreakpointSize + 4, 0x7FFFFFFF); test::fix_blob_crc(b); },
        Nack::BlobInvalid},
-      {"alarm band below warn band",
-       [](std::vector<uint8_t>& b) { put_le16(b.data() + kBlobOffAlarmBands, 1); test::fix_blob_crc(b); },
+      {"alarm evidence below warn evidence",
+       [](std::vector<uint8_t>& b) { put_le16(b.data() + kBlobOffAlarmEvidence, 1); test::fix_blob_crc(b); },
+       Nack::BlobInvalid},
+      {"format version 1 (one shared state)",
+       [](std::vector<uint8_t>& b) { b[kBlobOffVersion] = 1; test::fix_blob_crc(b); }, Nack::BlobVersion},
+      {"reserved byte set", [](std::vector<uint8_t>& b) { b[kBlobOffReserved + 3] = 1; test::fix_blob_crc(b); },
+       Nack::BlobInvalid},
+      {"channel map: housing channel claims ambient",
+       [](std::vector<uint8_t>& b) { b[kBlobOffRoles + 1] = kModelRoleAmbient; test::fix_blob_crc(b); },
        Nack::BlobInvalid},
   };
   const auto key = test::dev_key();
@@ -214,6 +281,8 @@ TEST(ModelStore, InvalidBlobsAreNackedAndTheOldModelStaysActive) {
     c.edit(bad);
     const Upload u = upload(board, store, m, bad, key, key);
     EXPECT_EQ(u.commit, c.expected);
+    if (bad[kBlobOffVersion] != kReducedModelVersion && bad[0] == 'B')
+      EXPECT_EQ(u.detail >> 8, bad[kBlobOffVersion]) << "the NACK names the version found";
     EXPECT_EQ(store.active_seq(), 1u);
     EXPECT_EQ(active_blob(store), good);
     EXPECT_EQ(std::memcmp(&before, &m, sizeof m), 0) << "runtime model untouched by the failed upload";

@@ -9,34 +9,49 @@
 
 #include "boards/sim/native_board.hpp"
 #include "common/hmac.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "common/rtd.hpp"
 #include "common/wire_frame.hpp"
 #include "common/wire_messages.hpp"
+#include "host/thermal/model_reference.hpp"
 
 namespace btsm::test {
 
 inline double pt1000_ohm(double t_c) { return rtd_resistance<double>(iec60751<double>(1000.0), t_c).value; }
 
-// A valid two-breakpoint model blob; `variant` changes the gains so two blobs differ.
-inline std::vector<uint8_t> model_blob(double variant = 0.0) {
-  ReducedModelF64 f;
+// A valid three-breakpoint model blob for the module's default channel roles (ch1 rear bearing,
+// ch2 housing, ch3 front bearing, ch4 ambient; ch5 modelled without a role check), with both
+// early stop phases; `variant` changes the gains so two blobs differ.
+inline thermal::ReducedModelF64 model_f64(double variant = 0.0) {
+  thermal::ReducedModelF64 f;
   f.dt_ms = 5000;
   f.n_breakpoints = 3;
   f.ambient_channel = 3;
   f.enabled_mask = 0x1F;
+  f.stop_end_s[0] = 600;
+  f.stop_end_s[1] = 2400;
+  const uint8_t roles[5] = {3, 4, 2, kModelRoleAmbient, kModelRoleUnchecked};
   const uint16_t speeds[3] = {0, 6000, 12000};
   for (int i = 0; i < 3; ++i) {
     f.speed_rpm[i] = speeds[i];
-    f.a[i] = 0.998 - 0.0002 * i;
-    f.b[i] = i == 0 ? 0.0 : 0.004 * i + variant * 1e-3;
     for (int j = 0; j < 5; ++j) {
-      f.c[i][j] = j == 3 ? 0.0 : 1.0 - 0.1 * j;
-      f.d[i][j] = i == 0 || j == 3 ? 0.0 : 0.05 * j;
+      if (j == 3) continue;
+      f.a[i][j] = 0.998 - 0.0002 * i - 0.0001 * j;
+      f.b_K[i][j] = i == 0 ? 0.0 : (0.02 * i + variant * 1e-3) * (1.0 - f.a[i][j]) * (10.0 + j);
     }
   }
+  for (int j = 0; j < 5; ++j) {
+    f.role[j] = roles[j];
+    if (j == 3) continue;
+    f.stop_a[0][j] = 0.995 - 0.001 * j;
+    f.stop_a[1][j] = 0.997 - 0.0005 * j;
+  }
+  return f;
+}
+
+inline std::vector<uint8_t> model_blob(double variant = 0.0) {
   ReducedModel m;
-  const ModelCheck c = quantize(f, m);
+  const ModelCheck c = thermal::quantize(model_f64(variant), m);
   if (!c.ok()) return {};
   std::vector<uint8_t> blob(kReducedModelBlobSize);
   encode(m, blob.data());

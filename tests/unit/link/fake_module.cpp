@@ -2,8 +2,9 @@
 
 #include "common/crc.hpp"
 #include "common/hmac.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "firmware/device_key.hpp"
+#include "host/thermal/model_reference.hpp"
 
 #include <poll.h>
 #include <unistd.h>
@@ -364,21 +365,21 @@ void FakeModule::run() {
 }
 
 std::vector<uint8_t> make_test_blob(int variant) {
-  ReducedModelF64 f;
+  thermal::ReducedModelF64 f;
   f.dt_ms = 5000;
   f.n_breakpoints = 2;
   f.speed_rpm[0] = 0;
   f.speed_rpm[1] = static_cast<uint16_t>(6000 + 100 * variant);
-  f.a[0] = 0.995;
-  f.a[1] = 0.99 - 0.001 * variant;
-  f.b[0] = 0.0;
-  f.b[1] = 0.05;
-  for (int j = 0; j < kModelChannels; ++j) {
-    f.c[0][j] = 0.5 + 0.1 * j;
-    f.c[1][j] = 0.5 + 0.1 * j;
+  const uint8_t roles[kModelChannels] = {3, 4, 2, kModelRoleAmbient, kModelRoleNotModelled};
+  f.enabled_mask = 0x0F;
+  for (int j = 0; j < 3; ++j) {
+    f.a[0][j] = 0.995;
+    f.a[1][j] = 0.99 - 0.001 * variant;
+    f.b_K[1][j] = 0.05 + 0.01 * j;
   }
+  for (int j = 0; j < kModelChannels; ++j) f.role[j] = roles[j];
   ReducedModel m;
-  const ModelCheck c = quantize(f, m);
+  const ModelCheck c = thermal::quantize(f, m);
   if (!c.ok()) throw std::logic_error(std::string("test blob does not quantize: ") + model_status_name(c.status));
   std::vector<uint8_t> blob(kReducedModelBlobSize);
   encode(m, blob.data());

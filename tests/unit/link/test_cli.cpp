@@ -1,7 +1,7 @@
 // The link commands as a user runs them: a separate process (btsm_link_cli = main.cpp +
 // cmd_link.cpp) against the in-process fake module on a pty, with HOME in a temp dir.
 #include "fake_module.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "firmware/device_key.hpp"
 #include "host/link/firmware_image.hpp"
 #include "host/sim/runner/sim_module.hpp"

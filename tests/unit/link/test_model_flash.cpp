@@ -2,11 +2,12 @@
 // wrong key (refused before any chunk), firmware without MODEL_AUTH, replayed commit, invalid
 // blobs, blob file formats, the link lost at the commit.
 #include "common/crc.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_blob.hpp"
 #include "fake_module.hpp"
 #include "host/link/model_flash.hpp"
 #include "host/link/serial_transport.hpp"
 #include "link_test_support.hpp"
+#include "module_on_pty.hpp"
 
 #include <gtest/gtest.h>
 
@@ -22,20 +23,8 @@ using btsm::test::FakeModuleOptions;
 
 namespace {
 
-struct Rig {
-  test::PtyPair pty;
-  FakeModule module;
-  SerialTransport transport;
-  Session session;
-  explicit Rig(FakeModuleOptions o = {}) : module(pty.release_master(), o), transport(pty.path), session(transport, fast()) {
-    module.start();
-  }
-  static SessionOptions fast() {
-    SessionOptions so;
-    so.reply_timeout = Millis(300);
-    so.retries = 3;
-    return so;
-  }
+struct Rig : test::ModuleOnPty {
+  explicit Rig(FakeModuleOptions o = {}) : ModuleOnPty(o, test::quick_session(3)) {}
 };
 
 }  // namespace
@@ -220,4 +209,22 @@ TEST(FlashModel, LinkLostAtTheCommitSaysWhatIsKnownAndHowToCheck) {
     }
     EXPECT_EQ(rig.module.model_seq(), 1u);  // the module did take the model both times
   }
+}
+// A blob of format version 1 (one state shared by all channels; tests/data/model-blob-v1) is
+// refused before anything is sent, by a message that names its version and what to do.
+TEST(FlashModel, VersionOneBlobIsRefusedNamingItsVersion) {
+  const auto v1 = load_model_blob(std::string(BTSM_TEST_DATA_DIR) + "/model-blob-v1/spindle_v1.bin");
+  ASSERT_EQ(v1.size(), 464u);
+  const std::string why = check_model_blob(v1);
+  EXPECT_NE(why.find("version 1"), std::string::npos) << why;
+  EXPECT_NE(why.find("reduce"), std::string::npos) << why;
+  Rig rig;
+  try {
+    flash_model(rig.session, v1, test::fake_module_key());
+    FAIL() << "a version-1 blob was flashed";
+  } catch (const std::runtime_error& e) {
+    EXPECT_NE(std::string(e.what()).find("version 1"), std::string::npos) << e.what();
+  }
+  EXPECT_EQ(rig.module.commit_payloads().size(), 0u);
+  EXPECT_TRUE(rig.module.active_model().empty());
 }

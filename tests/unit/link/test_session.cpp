@@ -6,6 +6,7 @@
 #include "host/link/session.hpp"
 #include "host/thermal/recording.hpp"
 #include "link_test_support.hpp"
+#include "module_on_pty.hpp"
 
 #include <gtest/gtest.h>
 
@@ -19,22 +20,7 @@ using btsm::test::FakeModuleOptions;
 
 namespace {
 
-struct ModuleOnPty {
-  test::PtyPair pty;
-  FakeModule module;
-  SerialTransport transport;
-  Session session;
-  explicit ModuleOnPty(FakeModuleOptions o = {}, SessionOptions so = fast())
-      : module(pty.release_master(), o), transport(pty.path), session(transport, so) {
-    module.start();
-  }
-  static SessionOptions fast() {
-    SessionOptions so;
-    so.reply_timeout = Millis(300);
-    so.retries = 2;
-    return so;
-  }
-};
+using test::ModuleOnPty;
 
 // A fake module streaming a sample every 2 ms, identified, and record options writing a CSV into
 // a temporary folder (no reconnect).

@@ -12,13 +12,14 @@
 //                                                      KalmanFixedSetup::configure (the firmware's
 //                                                      filter setup from its configuration)
 //   'G' p:u32                -> 'G' gain:u32 post:u32 gate:u32   gain_for(p) of the last 'K' setup
+//   'S' a:i32 b:i32 t:i32 amb:i32 run:u8 -> 'S' t':i32 pred:i32   one channel of step_with()
 // At boot it sends 'B'. Unknown command bytes are answered with '?'.
 #include <avr/io.h>
 #include <stdint.h>
 
 #include "common/fixed_point.hpp"
 #include "common/kalman.hpp"
-#include "common/reduced_model.hpp"
+#include "common/model_step.hpp"
 #include "common/rtd.hpp"
 
 namespace {
@@ -112,6 +113,22 @@ int main() {
       put_u32(m.gain);
       put_u32(m.p_post);
       put_u32(m.gate);
+    } else if (cmd == 'S') {
+      // Channel 0 of the model step (its union-read 64-bit product and rounding on the target).
+      btsm::ModelBreakpoint p;
+      for (uint8_t j = 0; j < btsm::kModelChannels; ++j) p.ch[j].a_q30 = p.ch[j].b = 0;
+      p.ch[0].a_q30 = static_cast<int32_t>(get_u32());
+      p.ch[0].b = static_cast<int32_t>(get_u32());
+      btsm::ReducedModelState st;
+      st.t[0] = static_cast<int32_t>(get_u32());
+      st.stopped_ms = 0;
+      const int32_t amb = static_cast<int32_t>(get_u32());
+      const bool running = get_byte() != 0;
+      int32_t pred[btsm::kModelChannels];
+      btsm::step_with(p, running, btsm::kModelAmbientNone, 0x01, 5000, st, amb, pred);
+      put_byte('S');
+      put_u32(static_cast<uint32_t>(st.t[0]));
+      put_u32(static_cast<uint32_t>(pred[0]));
     } else {
       put_byte('?');
     }
