@@ -344,6 +344,39 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
   return cr;
 }
 
+CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateResult& c, std::size_t drop) {
+  const th::Network& base = *ctx.base;
+  CandidateResult r = c;
+  EffectSpec spec = c.spec;
+  const std::string dropped = base.nodes[static_cast<std::size_t>(spec.nodes.at(drop))].name;
+  spec.nodes.erase(spec.nodes.begin() + static_cast<std::ptrdiff_t>(drop));
+  std::map<std::string, double> values;
+  for (const auto& name : c.effect_params) values[name] = c.values[c.net.param_index(name)];
+  if (spec.kind == EffectKind::HeatSourceTransient) values["g_transient_decay"] += values["g_transient_" + dropped];
+  AugmentedModel am = augment(base, c.values.head(base.param_count()), spec, values);
+  th::FitOptions f;
+  f.staged = false;
+  f.start = am.params;
+  f.relative_tolerance = 1e-9;
+  f.max_iterations = ctx.joint_iterations;
+  f.extra_heat_w = impulses_for(am, *ctx.fit_refit);
+  f.initial_state_at_ambient = am.rest_nodes;
+  f.hold = held_for(ctx, am);
+  if (!ctx.fit_base) f.free_only = am.effect_params;
+  const th::FitResult fr = th::fit_network(am.net, *ctx.fit_refit, f);
+  r.spec = spec;
+  r.label = effect_label(spec, base);
+  r.nodes = effect_nodes(spec, base);
+  r.net = am.net;
+  r.values = fr.params;
+  r.key_params = am.key_params;
+  r.effect_params = am.effect_params;
+  r.held = f.hold;
+  fill_evidence(ctx, am, spec, fr, r);
+  r.status = "fitted";
+  return r;
+}
+
 bool polish_candidate(const CandidateContext& ctx, CandidateResult& c) {
   if (!ctx.fit_base || c.status == "failed" || c.status == "refused" || c.status == "not fitted") return false;
   if (ctx.fit_refit == nullptr || ctx.fit_refit == ctx.fit) return false;

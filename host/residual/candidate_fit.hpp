@@ -37,6 +37,9 @@ struct CandidateContext {
 // reason are left to the decision. A failing fit gives status "failed" with the error as the reason.
 CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p);
 
+// The candidate without its `drop`-th node, refitted jointly from its values (status "fitted").
+CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateResult& c, std::size_t drop);
+
 // Refits a fitted candidate jointly on the full-rate fit recordings from its values (the refits
 // run on decimated recordings) and refreshes its evidence; true when that lowered the fit error.
 bool polish_candidate(const CandidateContext& ctx, CandidateResult& c);

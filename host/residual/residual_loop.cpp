@@ -49,6 +49,7 @@ class ResidualLoop {
     refit_candidates();
     repolish_base();
     decide();
+    prune_chosen_on_check();
     polish_chosen();
     L_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start_).count();
     say(fmt::format("residual: verdict {} ({}) in {:.1f} s", L_.verdict, L_.label, L_.seconds));
@@ -392,6 +393,46 @@ class ResidualLoop {
       c.delta_bic = base_bic_ - c.bic;
       c.check_factor = c.check.rmse_k > 0 ? L_.before_check.rmse_k / c.check.rmse_k : 0;
     }
+  }
+
+  // Stage 7a: the chosen effect names only the nodes the held-out part needs. A node whose
+  // coefficient is significant on the fit part can still be the effect compensating the base
+  // model's own error there; each node is dropped in turn (greedily, the least needed first) and
+  // stays dropped when the check error without it is not worse by more than 10 %.
+  void prune_chosen_on_check() {
+    if (L_.chosen < 0) return;
+    ctx_.base_bic = base_bic_;  // the base may have been re-polished since the refits
+    ctx_.before_check = L_.before_check;
+    bool changed = false;
+    while (true) {
+      CandidateResult& c = L_.candidates[static_cast<std::size_t>(L_.chosen)];
+      if (c.spec.nodes.size() < 2) break;
+      int best = -1;
+      CandidateResult best_r;
+      for (std::size_t i = 0; i < c.spec.nodes.size(); ++i) {
+        try {
+          CandidateResult r = refit_fewer_nodes(ctx_, c, i);
+          say(fmt::format("residual: {} without {}: check {:.4g} K (with it {:.4g} K)", c.label,
+                          base_.nodes[static_cast<std::size_t>(c.spec.nodes[i])].name, r.check.rmse_k, c.check.rmse_k));
+          if (r.check.rmse_k <= 1.1 * c.check.rmse_k && (best < 0 || r.check.rmse_k < best_r.check.rmse_k)) {
+            best = static_cast<int>(i);
+            best_r = std::move(r);
+          }
+        } catch (const std::exception& e) {
+          say(std::string("residual: refit with fewer nodes failed: ") + e.what());
+        }
+      }
+      if (best < 0) break;
+      say(fmt::format("residual: {} -> {}: the held-out part does not need {}", c.label, best_r.label,
+                      base_.nodes[static_cast<std::size_t>(c.spec.nodes[static_cast<std::size_t>(best)])].name));
+      best_r.reason.clear();
+      c = std::move(best_r);
+      changed = true;
+    }
+    if (!changed) return;
+    for (auto& x : L_.candidates)
+      if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+    decide();
   }
 
   // Stage 7b: the refits ran on decimated recordings; the chosen candidate is refitted on the

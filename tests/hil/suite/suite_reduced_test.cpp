@@ -30,7 +30,8 @@ double parameter(const std::string& dir, const std::string& name) {
 TEST(EffectSuiteReduced, ResidualLoopOnTheReducedSet) {
   SuiteOptions so;
   so.set = SuiteSet::Reduced;
-  so.only = {"clean_r", "distractor_ambient_drift_r", "temperature_dependent_heat_rising_r"};
+  so.only = {"clean_r", "distractor_ambient_drift_r", "temperature_dependent_heat_rising_r",
+             "extra_heat_input_speed_driven_r", "event_conductance_cover_open_r"};
   RunnerOptions ro;
   ro.out_dir = testing::TempDir() + "/effect_suite_reduced";
   std::filesystem::remove_all(ro.out_dir);
@@ -38,7 +39,7 @@ TEST(EffectSuiteReduced, ResidualLoopOnTheReducedSet) {
   ro.progress = [](const std::string& s) { std::cerr << s << std::endl; };
   const SuiteReport rep = run_suite(make_cases(so), ro);
   std::cout << rep.table_md;
-  ASSERT_EQ(rep.results.size(), 3u);
+  ASSERT_EQ(rep.results.size(), 5u);
   for (const auto& r : rep.results) ASSERT_NE(r.verdict, "error") << r.id << ": " << r.error;
 
   // The demo's effect family (rear-bearing friction rising with its temperature): named with its
@@ -48,13 +49,29 @@ TEST(EffectSuiteReduced, ResidualLoopOnTheReducedSet) {
   EXPECT_TRUE(rising.goal) << rising.rmse_before_k << " -> " << rising.rmse_after_k;
   EXPECT_GE(rising.cut(), 5.0);
 
+  // Speed-driven heat at the shaft, a node without a friction source (the first loop's
+  // `unexplained`): named with its node, check error cut at least 5x.
+  const auto& extra = find(rep, "extra_heat_input_speed_driven_r");
+  EXPECT_TRUE(extra.named) << extra.effect;
+  EXPECT_TRUE(extra.goal) << extra.rmse_before_k << " -> " << extra.rmse_after_k;
+
+  // A cover opening that switches a conductance at both bearings, from the declared event column:
+  // the family is found and claimed and the check error cut (x2.9 measured); the loop names the
+  // rear bearing only (the front bearing's share is not kept), so the node-complete `named` and the
+  // 5x goal are NOT met yet -- tighten when they are.
+  const auto& cover = find(rep, "event_conductance_cover_open_r");
+  EXPECT_TRUE(cover.family_named) << cover.effect;
+  EXPECT_TRUE(cover.claimed);
+  EXPECT_GE(cover.cut(), 2.0);
+
   // A drifting room is no effect.
   const auto& drift = find(rep, "distractor_ambient_drift_r");
   EXPECT_FALSE(drift.claimed) << drift.effect;
 
   // Clean data: no claim, except the one known gap -- the module's own Kalman filter is a real
   // lag of the recorded temperatures (about 3.5 s at 5 s samples), which the loop may take for a
-  // sensor_lag. Anything else claimed, or a lag longer than one sample, fails.
+  // sensor_lag (today it reports it as `partial`, not claimed). Anything else claimed, or a lag
+  // longer than one sample, fails.
   const auto& clean = find(rep, "clean_r");
   if (clean.claimed) {
     EXPECT_EQ(clean.effect, "sensor_lag");
