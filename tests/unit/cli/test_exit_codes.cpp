@@ -50,7 +50,7 @@ TEST(CliExitCodes, NonFiniteNumbersAreRefusedBeforeAnythingIsWritten) {
     EXPECT_FALSE(file_exists(d.file("r.json"))) << bad;
     EXPECT_FALSE(file_exists(d.file("m.bin"))) << bad;
   }
-  const CliResult warn = run_btsm(d, "reduce model.json --speeds 6000 --out r.json --warn nan");
+  const CliResult warn = run_btsm(d, "reduce model.json --speeds 6000 --out r.json --warn-evidence nan");
   EXPECT_EQ(warn.code, 2);
   EXPECT_NE(warn.err.find("'nan' is not a finite number"), std::string::npos) << warn.err;
   EXPECT_EQ(run_btsm(d, "fit x.csv --preset spindle4 --out m.json --sum-c inf").code, 2);

@@ -5,7 +5,7 @@
 #   hal/       common/, hal/ and <stdint.h> <stddef.h>
 #   firmware/  common/, hal/, firmware/ and the four C headers of common/
 #   boards/    anything but host/
-#   host/      its areas in the order cli, demo, sim, residual, link, report, thermal: each
+#   host/      its areas in the order cli, demo, sim, residual, link, report, thermal, io: each
 #              includes only areas after it (and common/, hal/, firmware/, boards/)
 # Usage: check_includes.sh <project root>. Exit 0 = every include allowed, 1 = some not (each
 # printed with its file and line).
@@ -48,7 +48,7 @@ check_project firmware 'common|hal|firmware'
 check_system firmware "$c_headers"
 check_project boards 'common|hal|firmware|boards'
 
-areas=(cli demo sim residual link report thermal)
+areas=(cli demo sim residual link report thermal io)
 for ((i = 0; i < ${#areas[@]}; i++)); do
   allowed="common|hal|firmware|boards|host/${areas[i]}"
   for ((j = i + 1; j < ${#areas[@]}; j++)); do allowed="$allowed|host/${areas[j]}"; done
