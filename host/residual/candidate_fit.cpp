@@ -154,12 +154,47 @@ std::map<std::string, double> start_values(const th::Network& base, const Eigen:
   return v;
 }
 
+// The options of a joint refit of base + effect (of the effect alone when the base is held): from
+// `start`, with the effect's rest states, its impulses on `recs` and the capacitance held_for holds.
+th::FitOptions joint_options(const CandidateContext& ctx, const AugmentedModel& am, const Eigen::VectorXd& start,
+                             const std::vector<th::Recording>& recs) {
+  th::FitOptions f;
+  f.staged = false;
+  f.start = start;
+  f.relative_tolerance = 1e-9;
+  f.max_iterations = ctx.joint_iterations;
+  f.extra_heat_w = impulses_for(am, recs);
+  f.initial_state_at_ambient = am.rest_nodes;
+  f.hold = held_for(ctx, am);
+  if (!ctx.fit_base) f.free_only = am.effect_params;
+  return f;
+}
+
+// A fitted augmented model into its candidate: the effect as fitted (its nodes, network, values,
+// the states it adds) and the evidence for it.
+void record_fit(const CandidateContext& ctx, const AugmentedModel& am, const EffectSpec& spec, const th::FitResult& fr,
+                CandidateResult& cr) {
+  const th::Network& base = *ctx.base;
+  cr.spec = spec;
+  cr.label = effect_label(spec, base);
+  cr.nodes = effect_nodes(spec, base);
+  cr.net = am.net;
+  cr.values = fr.params;
+  cr.transient_node = am.transient_node;
+  cr.trigger = am.trigger;
+  cr.rest_nodes = am.rest_nodes;
+  cr.key_params = am.key_params;
+  cr.effect_params = am.effect_params;
+  cr.held = held_for(ctx, am);
+  fill_evidence(ctx, am, spec, fr, cr);
+  cr.status = "fitted";
+}
+
 CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) {
   const auto t0 = std::chrono::steady_clock::now();
   const th::Network& base = *ctx.base;
   const auto& fit = *ctx.fit;
   const auto& refit = ctx.fit_refit ? *ctx.fit_refit : fit;
-  const auto& check = *ctx.check;
   CandidateResult cr;
   cr.spec = p.spec;
   cr.label = effect_label(p.spec, base);
@@ -270,19 +305,7 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     EffectSpec spec = best_spec;
     // The joint refit of every parameter (or, with a fixed base, of the effect alone) from `start`.
     const auto joint = [&](const AugmentedModel& a, const Eigen::VectorXd& start) {
-      th::FitOptions f2 = fo;
-      f2.start = start;
-      f2.relative_tolerance = 1e-9;
-      f2.max_iterations = ctx.joint_iterations;
-      f2.extra_heat_w = impulses_for(a, refit);
-      f2.initial_state_at_ambient = a.rest_nodes;
-      if (!ctx.fit_base) f2.free_only = a.effect_params;
-      if (a.adds_free_capacitance && std::isfinite(base.sum_capacitance_J_per_K)) {
-        // the new capacitance is not part of the known total: hold the largest base capacitance
-        // at its base-fit value instead (the same scale, fixed another way)
-        const int c = largest_capacitance_param(base, ctx.base_params);
-        if (c >= 0 && !base.params[static_cast<std::size_t>(c)].fixed) f2.hold.push_back(base.params[static_cast<std::size_t>(c)].name);
-      }
+      const th::FitOptions f2 = joint_options(ctx, a, start, refit);
       return th::fit_network(a.net, refit, f2);
     };
     th::FitResult fr = best;
@@ -323,19 +346,7 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
       am = std::move(a2);
       fr = std::move(f2);
     }
-    cr.spec = spec;
-    cr.label = effect_label(spec, base);
-    cr.nodes = effect_nodes(spec, base);
-    cr.net = am.net;
-    cr.values = fr.params;
-    cr.transient_node = am.transient_node;
-    cr.trigger = am.trigger;
-    cr.rest_nodes = am.rest_nodes;
-    cr.key_params = am.key_params;
-    cr.effect_params = am.effect_params;
-    cr.held = held_for(ctx, am);
-    fill_evidence(ctx, am, spec, fr, cr);
-    cr.status = "fitted";
+    record_fit(ctx, am, spec, fr, cr);
   } catch (const std::exception& e) {
     cr.status = "failed";
     cr.reason = std::string("fit failed: ") + e.what();
@@ -354,26 +365,8 @@ CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateRe
   for (const auto& name : c.effect_params) values[name] = c.values[c.net.param_index(name)];
   if (spec.kind == EffectKind::HeatSourceTransient) values["g_transient_decay"] += values["g_transient_" + dropped];
   AugmentedModel am = augment(base, c.values.head(base.param_count()), spec, values);
-  th::FitOptions f;
-  f.staged = false;
-  f.start = am.params;
-  f.relative_tolerance = 1e-9;
-  f.max_iterations = ctx.joint_iterations;
-  f.extra_heat_w = impulses_for(am, *ctx.fit_refit);
-  f.initial_state_at_ambient = am.rest_nodes;
-  f.hold = held_for(ctx, am);
-  if (!ctx.fit_base) f.free_only = am.effect_params;
-  const th::FitResult fr = th::fit_network(am.net, *ctx.fit_refit, f);
-  r.spec = spec;
-  r.label = effect_label(spec, base);
-  r.nodes = effect_nodes(spec, base);
-  r.net = am.net;
-  r.values = fr.params;
-  r.key_params = am.key_params;
-  r.effect_params = am.effect_params;
-  r.held = f.hold;
-  fill_evidence(ctx, am, spec, fr, r);
-  r.status = "fitted";
+  const th::FitResult fr = th::fit_network(am.net, *ctx.fit_refit, joint_options(ctx, am, am.params, *ctx.fit_refit));
+  record_fit(ctx, am, spec, fr, r);
   return r;
 }
 
@@ -391,14 +384,8 @@ bool polish_candidate(const CandidateContext& ctx, CandidateResult& c) {
   am.transient_node = c.transient_node;
   am.rest_nodes = c.rest_nodes;
   am.trigger = c.trigger;
-  th::FitOptions f;
-  f.staged = false;
-  f.start = c.values;
-  f.relative_tolerance = 1e-9;
-  f.max_iterations = ctx.joint_iterations;
-  f.extra_heat_w = impulses_for(am, *ctx.fit);
-  f.initial_state_at_ambient = am.rest_nodes;
-  f.hold = c.held;
+  th::FitOptions f = joint_options(ctx, am, c.values, *ctx.fit);
+  f.hold = c.held;  // the rebuilt model does not know which capacitance the refit held
   const th::FitResult fr = th::fit_network(am.net, *ctx.fit, f);
   if (!(fr.rms_K < c.fit.rmse_k)) return false;
   c.values = fr.params;
