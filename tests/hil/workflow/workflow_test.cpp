@@ -7,6 +7,7 @@
 // channel map goes from the recordings' roles through fit and reduce into the blob, flash-model
 // agrees with the module, and a 30 W rear-bearing fault raises ALARM on the channel that carries
 // the rear-bearing probe; the labels' map is refused before anything is sent.
+#include "cli_run.hpp"
 #include "firmware/device_key.hpp"
 #include "host/sim/runner/sim_module.hpp"
 
@@ -29,17 +30,7 @@ using namespace btsm;
 
 namespace {
 
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
-
-std::string slurp(const std::string& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
+using Result = test::CliResult;
 
 struct Home {
   std::string path;
@@ -48,18 +39,8 @@ struct Home {
     fs::create_directories(path);
   }
   ~Home() { fs::remove_all(path); }
-  // Runs `btsm ARGS` with HOME=path.
-  Result btsm(const std::string& args) const {
-    const std::string out = path + "/stdout.txt", err = path + "/stderr.txt";
-    const std::string cmd = "env -u XDG_CONFIG_HOME HOME='" + path + "' " + BTSM_CLI + " " + args + " >'" + out + "' 2>'" + err +
-                            "' </dev/null";
-    const int st = std::system(cmd.c_str());
-    Result r;
-    r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-    r.out = slurp(out);
-    r.err = slurp(err);
-    return r;
-  }
+  // Runs `btsm ARGS` with HOME=path (ctest's timeout stops a hang).
+  Result btsm(const std::string& args) const { return test::run_cli(BTSM_CLI, path, args, 0); }
 };
 
 // The simulated module's development key (firmware/device_key.hpp), as `keys import` takes it.

@@ -10,14 +10,12 @@
 
 namespace btsm::test {
 
-namespace {
-std::string slurp(const std::string& p) {
+std::string read_text(const std::string& p) {
   std::ifstream in(p);
   std::stringstream ss;
   ss << in.rdbuf();
   return ss.str();
 }
-}  // namespace
 
 ScratchDir::ScratchDir() {
   std::string tmpl = (std::filesystem::temp_directory_path() / "btsm-cli-XXXXXX").string();
@@ -30,18 +28,27 @@ ScratchDir::~ScratchDir() {
   std::filesystem::remove_all(path, ec);
 }
 
-CliResult run_btsm(const ScratchDir& dir, const std::string& args, int timeout_s) {
-  const char* override_cli = std::getenv("BTSM_TEST_CLI");
-  const std::string cli = override_cli != nullptr && override_cli[0] != '\0' ? override_cli : BTSM_CLI;
-  const std::string out = dir.file(".stdout"), err = dir.file(".stderr");
-  const std::string cmd = "cd '" + dir.path + "' && env -u XDG_CONFIG_HOME HOME='" + dir.path + "' timeout -s KILL " +
-                          std::to_string(timeout_s) + " " + cli + " " + args + " >'" + out + "' 2>'" + err + "' </dev/null";
+CliResult run_cli(const std::string& cli, const std::string& home, const std::string& args, int timeout_s,
+                  const std::string& workdir) {
+  const std::string out = home + "/" + kCliStdout, err = home + "/" + kCliStderr;
+  const std::string cd = workdir.empty() ? "" : "cd '" + workdir + "' && ";
+  // `timeout` runs its command in a process group of its own, which the link tests that stop the
+  // module under a running `btsm` do not want: 0 runs the command as it is.
+  const std::string limit = timeout_s > 0 ? "timeout -s KILL " + std::to_string(timeout_s) + " " : "";
+  const std::string cmd = cd + "env -u XDG_CONFIG_HOME HOME='" + home + "' " + limit + cli + " " + args + " >'" + out + "' 2>'" +
+                          err + "' </dev/null";
   const int st = std::system(cmd.c_str());
   CliResult r;
   r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
+  r.out = read_text(out);
+  r.err = read_text(err);
   return r;
+}
+
+CliResult run_btsm(const ScratchDir& dir, const std::string& args, int timeout_s) {
+  const char* override_cli = std::getenv("BTSM_TEST_CLI");
+  const std::string cli = override_cli != nullptr && override_cli[0] != '\0' ? override_cli : BTSM_CLI;
+  return run_cli(cli, dir.path, args, timeout_s, dir.path);
 }
 
 void write_text(const std::string& path, const std::string& text) {

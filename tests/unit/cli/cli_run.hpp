@@ -19,11 +19,21 @@ struct ScratchDir {
   std::string path;
 };
 
-// `btsm ARGS` in `dir` (HOME there too), killed after timeout_s: a hang fails the test instead of
-// stopping the suite. The binary is $BTSM_TEST_CLI, else the one this build made.
+// `CLI ARGS` with HOME=home and XDG_CONFIG_HOME unset (so the key store is the test's own), in
+// `workdir` when it is not empty, killed after timeout_s (0: no limit): a hang fails the test instead
+// of stopping the suite. stdout and stderr pass through files in `home`. The one way the CLI tests (exit codes,
+// link commands, the README workflow) run a `btsm` process.
+inline constexpr const char* kCliStdout = "stdout.txt";
+inline constexpr const char* kCliStderr = "stderr.txt";
+CliResult run_cli(const std::string& cli, const std::string& home, const std::string& args, int timeout_s,
+                  const std::string& workdir = "");
+
+// `btsm ARGS` in `dir` (HOME there too), killed after timeout_s. The binary is $BTSM_TEST_CLI, else
+// the one this build made.
 CliResult run_btsm(const ScratchDir& dir, const std::string& args, int timeout_s = 60);
 
 void write_text(const std::string& path, const std::string& text);
+std::string read_text(const std::string& path);  // "" when it cannot be read
 bool file_exists(const std::string& path);
 
 }  // namespace btsm::test

@@ -6,6 +6,7 @@
 #include "host/link/firmware_image.hpp"
 #include "host/sim/runner/sim_module.hpp"
 #include "host/thermal/recording.hpp"
+#include "cli_run.hpp"
 #include "link_test_support.hpp"
 
 #include <gtest/gtest.h>
@@ -29,29 +30,12 @@ using btsm::test::FakeModule;
 
 namespace {
 
-struct Result {
-  int code = -1;
-  std::string out, err;
-};
+using Result = test::CliResult;
 
-std::string slurp(const std::string& p) {
-  std::ifstream in(p);
-  std::stringstream ss;
-  ss << in.rdbuf();
-  return ss.str();
-}
-
-// Runs the CLI with HOME=<home>, XDG_CONFIG_HOME unset.
+// Runs the CLI with HOME=<home>, XDG_CONFIG_HOME unset, in this process group (ctest's timeout
+// stops a hang).
 Result run(const test::TempDir& home, const std::string& args, const std::string& cli = BTSM_CLI) {
-  const std::string out = home.path + "/stdout.txt", err = home.path + "/stderr.txt";
-  const std::string cmd = "env -u XDG_CONFIG_HOME HOME='" + home.path + "' " + cli + " " + args + " >'" + out +
-                          "' 2>'" + err + "' </dev/null";
-  const int st = std::system(cmd.c_str());
-  Result r;
-  r.code = WIFEXITED(st) ? WEXITSTATUS(st) : -1;
-  r.out = slurp(out);
-  r.err = slurp(err);
-  return r;
+  return test::run_cli(cli, home.path, args, 0);
 }
 
 struct ModuleOnPty {
@@ -306,8 +290,8 @@ struct Background {
   ~Background() {
     if (thread.joinable()) thread.join();
   }
-  std::string err() const { return slurp(home.path + "/stderr.txt"); }
-  std::string out() const { return slurp(home.path + "/stdout.txt"); }
+  std::string err() const { return test::read_text(home.path + "/" + test::kCliStderr); }
+  std::string out() const { return test::read_text(home.path + "/" + test::kCliStdout); }
   // Seconds until `text` appears on stderr, or a negative value after `limit_s`.
   double seconds_until(const std::string& text, double limit_s) const {
     const auto t0 = std::chrono::steady_clock::now();
@@ -403,7 +387,7 @@ TEST(LinkCli, RecordLinkLostKeepsRowsAndSummaryAsTheReadmeSays) {
   EXPECT_EQ(file.meta_value("stop_reason").rfind("link lost: ", 0), 0u) << file.meta_value("stop_reason");
   EXPECT_EQ(file.meta_value("samples"), std::to_string(file.rows()));
   EXPECT_FALSE(file.meta_value("lost_samples").empty());
-  const std::string readme = slurp(BTSM_README);
+  const std::string readme = test::read_text(BTSM_README);
   const size_t from = readme.find("\n### Record\n");
   ASSERT_NE(from, std::string::npos);
   const std::string section = readme.substr(from, readme.find("\n### ", from + 1) - from);
