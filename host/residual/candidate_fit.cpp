@@ -190,20 +190,25 @@ void record_fit(const CandidateContext& ctx, const AugmentedModel& am, const Eff
   cr.status = "fitted";
 }
 
+CandidateResult candidate_of(const Proposal& p, const th::Network& base) {
+  CandidateResult c;
+  c.spec = p.spec;
+  c.label = effect_label(p.spec, base);
+  c.effect = effect_name(p.spec.kind);
+  c.nodes = effect_nodes(p.spec, base);
+  c.variant = p.variant;
+  c.explained_share = p.rss_fraction;
+  c.screening_score = p.score;
+  c.stability = p.stability;
+  return c;
+}
+
 CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) {
   const auto t0 = std::chrono::steady_clock::now();
   const th::Network& base = *ctx.base;
   const auto& fit = *ctx.fit;
   const auto& refit = ctx.fit_refit ? *ctx.fit_refit : fit;
-  CandidateResult cr;
-  cr.spec = p.spec;
-  cr.label = effect_label(p.spec, base);
-  cr.effect = effect_name(p.spec.kind);
-  cr.nodes = effect_nodes(p.spec, base);
-  cr.variant = p.variant;
-  cr.explained_share = p.rss_fraction;
-  cr.screening_score = p.score;
-  cr.stability = p.stability;
+  CandidateResult cr = candidate_of(p, base);
   auto say = [&](const std::string& s) {
     if (ctx.progress) ctx.progress(s);
   };

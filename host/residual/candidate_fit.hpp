@@ -30,6 +30,9 @@ struct CandidateContext {
   std::function<void(const std::string&)> progress;
 };
 
+// The candidate of a proposal before any fit: its effect, nodes and screening evidence.
+CandidateResult candidate_of(const Proposal& p, const thermal::Network& base);
+
 // Refits `p` from several starts, each an effect-only fit first: the screening's coefficients on the
 // base fit and on the base shifted as the screening's regression says (what the base absorbed,
 // given back), and for a family with a time constant a second time constant; the joint refit of

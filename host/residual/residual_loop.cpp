@@ -317,15 +317,7 @@ class ResidualLoop {
     int fitted = 0;
     for (const Proposal& p : L_.screening.proposals) {
       if (fitted >= o_.max_candidates) {
-        CandidateResult c;
-        c.spec = p.spec;
-        c.label = effect_label(p.spec, base_);
-        c.effect = effect_name(p.spec.kind);
-        c.nodes = effect_nodes(p.spec, base_);
-        c.variant = p.variant;
-        c.explained_share = p.rss_fraction;
-        c.screening_score = p.score;
-        c.stability = p.stability;
+        CandidateResult c = candidate_of(p, base_);
         c.status = "not fitted";
         c.reason = fmt::format("screening score {:.0f} below the {} best proposals", p.score, o_.max_candidates);
         L_.candidates.push_back(c);

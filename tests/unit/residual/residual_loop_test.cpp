@@ -48,12 +48,6 @@ LoopOptions quiet_options() {
   return o;
 }
 
-const CandidateResult* candidate(const LoopResult& r, const std::string& effect) {
-  for (const auto& c : r.candidates)
-    if (c.effect == effect && (c.status == "effect" || c.status == "partial" || c.status == "rejected")) return &c;
-  return nullptr;
-}
-
 class ResidualLoopFamily : public ::testing::TestWithParam<FamilyCase> {};
 
 // Not met yet (reported as skipped with the reason, not hidden): sensor_drift_T1 (the staged base fit lands in a
