@@ -20,7 +20,7 @@
 #include "firmware/acquisition.hpp"
 #include "common/platform.hpp"
 #include "firmware/config.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "firmware/diagnosis_stage.hpp"
 #include "firmware/model_store.hpp"
 #include "hal/contracts.hpp"

@@ -6,7 +6,7 @@
 #include <avr/wdt.h>
 #include <util/atomic.h>
 
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "hal/contracts.hpp"
 
 static_assert(btsm::hal::CheckBoard<btsm::bluno::Board>::value, "Bluno board must satisfy the HAL contract");
@@ -15,7 +15,7 @@ static_assert(BTSM_KEY_SECTION_ADDR == btsm::device_key::kFlashAddress, "linker 
 #endif
 static_assert(sizeof(double) == 4, "avr-g++: double is 32-bit; the firmware must not rely on more");
 
-// The per-device key record (firmware/device_key.hpp), linked at device_key::kFlashAddress by
+// The per-device key record (common/device_key.hpp), linked at device_key::kFlashAddress by
 // --section-start=.btsm_key. Erased (no key) unless the image is built with BTSM_DEV_KEY.
 extern "C" const uint8_t btsm_device_key_record[btsm::device_key::kRecordSize]
     __attribute__((used, section(".btsm_key"))) = {

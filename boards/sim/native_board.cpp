@@ -6,7 +6,7 @@
 #include <limits>
 #include <stdexcept>
 
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "hal/contracts.hpp"
 
 namespace btsm::sim {

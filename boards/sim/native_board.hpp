@@ -20,7 +20,7 @@
 //  - watchdog -> fires when not kicked for its timeout; reported via mcu_reset_pending()
 //  - power    -> idle() is counted; reboot() is reported via mcu_reset_pending()
 //  - tach     -> the spindle speed the plant sets, quantised like the AVR period measurement
-//  - identity -> device key record (firmware/device_key.hpp), development key by default
+//  - identity -> device key record (common/device_key.hpp), development key by default
 #ifndef BTSM_BOARDS_SIM_NATIVE_BOARD_HPP
 #define BTSM_BOARDS_SIM_NATIVE_BOARD_HPP
 

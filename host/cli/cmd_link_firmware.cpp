@@ -92,7 +92,7 @@ void register_flash_firmware(CLI::App& app) {
   auto a = std::make_shared<FlashFirmwareArgs>();
   auto* c = app.add_subcommand("flash-firmware", "Patch the device key into the firmware image and program it with avrdude");
   c->footer(
-      "Writes the 64-byte key record (firmware/device_key.hpp: magic, device id, 32-byte key, CRC-32)\n"
+      "Writes the 64-byte key record (common/device_key.hpp: magic, device id, 32-byte key, CRC-32)\n"
       "at flash 0x7DC0 of the image, saves the patched image (mode 0600: it holds the key), then runs\n"
       "  avrdude -p atmega328p -c arduino -b 115200 -P PORT -D -U flash:w:PATCHED:i\n"
       "(the Bluno is programmed like an Arduino Uno through its USB port). The key is taken from the\n"

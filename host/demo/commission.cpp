@@ -1,6 +1,6 @@
 #include "host/demo/commission.hpp"
 
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "host/sim/plant/faults.hpp"
 
 #include <fmt/core.h>

@@ -12,7 +12,7 @@
 
 namespace btsm::link {
 
-constexpr size_t kDeviceKeySize = 32;  // = device_key::kKeySize in firmware/device_key.hpp
+constexpr size_t kDeviceKeySize = 32;  // = device_key::kKeySize in common/device_key.hpp
 using DeviceKey = std::array<uint8_t, kDeviceKeySize>;
 
 // Device ids are the u32 of INFO / the firmware key record, written as 8 lowercase hex digits.

@@ -1,7 +1,7 @@
 #include "host/link/firmware_image.hpp"
 
 #include "common/hex_text.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "host/io/hex.hpp"
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"

@@ -1,5 +1,5 @@
 #pragma once
-// Intel HEX images and the per-device key record of firmware/device_key.hpp: parse, patch the
+// Intel HEX images and the per-device key record of common/device_key.hpp: parse, patch the
 // 64-byte record at device_key::kFlashAddress, write the patched image, and build the avrdude
 // command line for the Bluno (programmed like an Arduino Uno through Optiboot).
 #include "host/link/device_keys.hpp"

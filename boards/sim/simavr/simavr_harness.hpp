@@ -48,7 +48,7 @@ struct HarnessOptions {
   int spi_sck_divider = 4;              // fosc/4 (SPR = 0, SPI2X = 0)
   uint32_t uart_baud = 115200;          // byte pacing of the host -> firmware direction
   // Written into flash after loading (e.g. the device key record that production flashes at
-  // firmware/device_key.hpp kFlashAddress); empty = the image as built.
+  // common/device_key.hpp kFlashAddress); empty = the image as built.
   std::vector<uint8_t> key_record;
   uint32_t key_record_addr = 0x7DC0;    // byte address in flash
 };

@@ -1,7 +1,7 @@
 // The real AVR image in simavr with the AD7794 model on its SPI bus.
 #include "host/sim/runner/module_board.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 
 #include <fstream>
 #include <stdexcept>

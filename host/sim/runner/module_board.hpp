@@ -24,10 +24,10 @@ struct ModuleBoardOptions {
   std::string elf_path;              // avr only
   std::string eeprom_path;           // raw 1 KB EEPROM image, loaded at start, saved on save
   uint8_t tach_pulses_per_rev = 1;   // pulses per revolution on the tach input
-  // avr: provision the public development key (firmware/device_key.hpp) into the image's key
+  // avr: provision the public development key (common/device_key.hpp) into the image's key
   // record, as the native board does by default; false = the image as built (often erased).
   bool avr_dev_key = true;
-  // Device key record (firmware/device_key.hpp layout, kRecordSize bytes) to provision instead:
+  // Device key record (common/device_key.hpp layout, kRecordSize bytes) to provision instead:
   // avr -> written to flash at kFlashAddress; native -> its device id and key. Empty = none.
   std::vector<uint8_t> key_record;
 };

@@ -5,7 +5,7 @@
 
 #include "boards/sim/native_board.hpp"
 #include "firmware/app.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 
 #include <cmath>
 

@@ -67,7 +67,7 @@ struct SimModuleOptions {
   Ad7794ModelOptions adc;              // noise seed/scale of the AD7794 model
   uint8_t tach_pulses_per_rev = 1;
   bool avr_dev_key = true;             // avr: provision the development key (see module_board.hpp)
-  // Provision this device key record (firmware/device_key.hpp layout, 64 bytes; build it with
+  // Provision this device key record (common/device_key.hpp layout, 64 bytes; build it with
   // device_key::build_record) on either board; empty = development key, device id 0x0000DE70.
   std::vector<uint8_t> key_record;
   std::function<void(const std::string&)> log;  // progress/status lines (CLI: stderr)

@@ -17,7 +17,7 @@
 #include "common/hmac.hpp"
 #include "common/wire_frame.hpp"
 #include "common/wire_messages.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "tests/bench/firmware/stack_paint.hpp"
 #include "tests/unit/firmware/test_support.hpp"  // model_blob()
 

@@ -9,7 +9,7 @@
 #include "common/crc.hpp"
 #include "common/hmac.hpp"
 #include "common/model_blob.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "host/thermal/model_reference.hpp"
 #include "wire_capture.hpp"
 

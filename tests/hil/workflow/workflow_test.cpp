@@ -8,7 +8,7 @@
 // agrees with the module, and a 30 W rear-bearing fault raises ALARM on the channel that carries
 // the rear-bearing probe; the labels' map is refused before anything is sent.
 #include "cli_run.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "host/sim/runner/sim_module.hpp"
 
 #include <fmt/format.h>
@@ -43,7 +43,7 @@ struct Home {
   Result btsm(const std::string& args) const { return test::run_cli(BTSM_CLI, path, args, 0); }
 };
 
-// The simulated module's development key (firmware/device_key.hpp), as `keys import` takes it.
+// The simulated module's development key (common/device_key.hpp), as `keys import` takes it.
 std::string dev_key_hex() {
   std::string k;
   for (uint8_t i = 0; i < 32; ++i) k += fmt::format("{:02x}", device_key::dev_key_byte(i));

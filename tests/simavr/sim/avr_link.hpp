@@ -3,7 +3,7 @@
 // (send / step / capture, see tests/hil/sim/model_upload.hpp).
 #include "boards/sim/ad7794_model.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "tests/hil/sim/wire_capture.hpp"
 
 #include <cstdlib>

@@ -2,7 +2,7 @@
 // cmd_link.cpp) against the in-process fake module on a pty, with HOME in a temp dir.
 #include "fake_module.hpp"
 #include "common/model_blob.hpp"
-#include "firmware/device_key.hpp"
+#include "common/device_key.hpp"
 #include "host/link/firmware_image.hpp"
 #include "host/sim/runner/sim_module.hpp"
 #include "host/thermal/recording.hpp"

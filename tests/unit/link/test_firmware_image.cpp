@@ -1,5 +1,5 @@
-// Intel HEX parsing/writing and patching the per-device key record of firmware/device_key.hpp.
-#include "firmware/device_key.hpp"
+// Intel HEX parsing/writing and patching the per-device key record of common/device_key.hpp.
+#include "common/device_key.hpp"
 #include "host/link/firmware_image.hpp"
 
 #include <gtest/gtest.h>

@@ -16,8 +16,8 @@
 // key and refuses every model write (NACK AUTH_FAILED) until a key is patched in. A development
 // image (CMake -DBTSM_DEV_KEY=ON) carries kDevKey below with device_id kDevDeviceId; it is public
 // and must never be used in production.
-#ifndef BTSM_FIRMWARE_DEVICE_KEY_HPP
-#define BTSM_FIRMWARE_DEVICE_KEY_HPP
+#ifndef BTSM_COMMON_DEVICE_KEY_HPP
+#define BTSM_COMMON_DEVICE_KEY_HPP
 
 #include <stdint.h>
 
