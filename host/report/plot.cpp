@@ -148,15 +148,11 @@ void draw_markers(cairo_t* cr, const Plot& p, const PanelLayout& l) {
     cairo_move_to(cr, x, l.plot.y), cairo_line_to(cr, x, l.plot.y + l.plot.h), cairo_stroke(cr);
     cairo_set_dash(cr, nullptr, 0, 0);
     if (p.markers[i].label.empty()) continue;
-    cairo_text_extents_t e;
-    cairo_text_extents(cr, p.markers[i].label.c_str(), &e);
-    const bool right = x + 4 + e.x_advance <= l.plot.x + l.plot.w - 2;  // else on the line's left
-    const double tx = right ? x + 4 : x - 4 - e.x_advance;
-    const double ty = l.plot.y + 4 + 14 * static_cast<double>(i % 3);
+    const Rect& box = l.marker_label_box[i];  // placed off the data by layout_figure
     cairo_set_source_rgba(cr, 1, 1, 1, 0.85);
-    cairo_rectangle(cr, tx - 2, ty, e.x_advance + 4, kMarkerFont + 4), cairo_fill(cr);
+    cairo_rectangle(cr, box.x, box.y, box.w, box.h), cairo_fill(cr);
     set_colour(cr, kInk);
-    text(cr, tx, ty + 2 + kMarkerFont * 0.5, p.markers[i].label, kMarkerFont, 0, 0.5);
+    text(cr, box.x + 2, box.y + 2 + kMarkerFont * 0.5, p.markers[i].label, kMarkerFont, 0, 0.5);
   }
 }
 
@@ -190,7 +186,8 @@ void render(const std::vector<Plot>& panels, const FigureLayout& L, cairo_surfac
     const Plot& p = panels[i];
     const PanelLayout& l = L.panels[i];
     set_colour(cr, kInk);
-    text(cr, L.width / 2.0, l.title_y, l.title, kTitleFont, 0.5, 0);
+    for (size_t k = 0; k < l.title_lines.size(); ++k)
+      text(cr, L.width / 2.0, l.title_y + kTitleLine * static_cast<double>(k), l.title_lines[k], kTitleFont, 0.5, 0);
     draw_axes(cr, p, l);
     cairo_save(cr);
     cairo_rectangle(cr, l.plot.x, l.plot.y, l.plot.w, l.plot.h);

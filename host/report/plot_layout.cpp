@@ -53,6 +53,24 @@ class TextMeasure {
     }
     return "…";
   }
+  // Words greedily onto lines of at most max_w, at most max_lines; a word wider than a line is
+  // cut; the last line gets an ellipsis when text is left over.
+  std::vector<std::string> wrap(const std::string& s, double size, double max_w, int max_lines) {
+    std::vector<std::string> lines;
+    std::string rest = s;
+    while (!rest.empty() && static_cast<int>(lines.size()) < max_lines - 1 && width(rest, size) > max_w) {
+      size_t cut = std::string::npos;
+      for (size_t sp = rest.find(' '); sp != std::string::npos; sp = rest.find(' ', sp + 1)) {
+        if (width(rest.substr(0, sp), size) > max_w) break;
+        cut = sp;
+      }
+      if (cut == std::string::npos || cut == 0) break;  // no space to break at: ellipsis below
+      lines.push_back(rest.substr(0, cut));
+      rest = rest.substr(rest.find_first_not_of(' ', cut) == std::string::npos ? rest.size() : rest.find_first_not_of(' ', cut));
+    }
+    if (!rest.empty() || lines.empty()) lines.push_back(fit(rest, size, max_w));
+    return lines;
+  }
 
  private:
   cairo_surface_t* surface_;
@@ -164,6 +182,77 @@ double FigureLayout::py(const Plot& p, const PanelLayout& l, double y) const {
   return l.plot.y + kYInset + (l.plot.h - 2 * kYInset) * (1 - f);
 }
 
+namespace {
+
+// Does segment a-b touch box r (Liang-Barsky clipping)?
+bool segment_touches(double ax, double ay, double bx, double by, const Rect& r) {
+  double t0 = 0, t1 = 1;
+  const double dx = bx - ax, dy = by - ay;
+  const double pq[4][2] = {{-dx, ax - r.x}, {dx, r.x + r.w - ax}, {-dy, ay - r.y}, {dy, r.y + r.h - ay}};
+  for (const auto& e : pq) {
+    if (e[0] == 0) {
+      if (e[1] < 0) return false;
+      continue;
+    }
+    const double t = e[1] / e[0];
+    if (e[0] < 0) t0 = std::max(t0, t);
+    else t1 = std::min(t1, t);
+    if (t0 > t1) return false;
+  }
+  return true;
+}
+
+// The label box of a marker at pixel x: the first candidate place that covers no data and no
+// earlier label, else the one covering the least.
+Rect place_marker_label(const Plot& p, const PanelLayout& l, const FigureLayout& L, double x, double text_w,
+                        const std::vector<Rect>& taken) {
+  const double w = text_w + 4, h = kMarkerFont + 4, pad = 4;
+  const Rect& b = l.plot;
+  std::vector<double> ys;
+  for (int k = 0; k < 3; ++k) ys.push_back(b.y + pad + 14 * k);
+  for (int k = 0; k < 3; ++k) ys.push_back(b.y + b.h - pad - h - 14 * k);
+  ys.push_back(b.y + (b.h - h) / 2);
+  Rect best;
+  int best_cover = std::numeric_limits<int>::max();
+  for (double y : ys)
+    for (double tx : {x + 4 - 2, x - 4 - text_w - 2}) {
+      const Rect r{tx, y, w, h};
+      if (!b.contains(r)) continue;
+      int cover = data_touching(p, l, L, r);
+      for (const Rect& t : taken) cover += t.overlaps(r) ? 1000 : 0;
+      if (cover < best_cover) best = r, best_cover = cover;
+      if (cover == 0) return best;
+    }
+  return best;
+}
+
+}  // namespace
+
+int data_touching(const Plot& p, const PanelLayout& l, const FigureLayout& L, const Rect& r) {
+  // The drawn width of lines and dots reaches a few px beyond the data points.
+  const Rect g{r.x - 3, r.y - 3, r.w + 6, r.h + 6};
+  int hits = 0;
+  for (const auto& s : p.series) {
+    const size_t n = std::min(s.x.size(), s.y.size());
+    bool have_last = false;
+    double lx = 0, ly = 0;
+    for (size_t i = 0; i < n; ++i) {
+      if (!usable(s.x[i], p.log_x) || !usable(s.y[i], p.log_y)) {
+        have_last = false;
+        continue;
+      }
+      const double X = L.px(p, l, s.x[i]), Y = L.py(p, l, s.y[i]);
+      if (s.style == Series::Style::Points) hits += segment_touches(X, Y, X, Y, g) ? 1 : 0;
+      else if (have_last && s.style == Series::Style::Step)
+        hits += (segment_touches(lx, ly, X, ly, g) || segment_touches(X, ly, X, Y, g)) ? 1 : 0;
+      else if (have_last) hits += segment_touches(lx, ly, X, Y, g) ? 1 : 0;
+      else hits += segment_touches(X, Y, X, Y, g) ? 1 : 0;
+      have_last = true, lx = X, ly = Y;
+    }
+  }
+  return hits;
+}
+
 FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions& o) {
   FigureLayout L;
   L.width = o.width;
@@ -207,12 +296,20 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
     const Plot& p = panels[i];
     PanelLayout& l = L.panels[i];
     double h = std::max(140.0, std::round(o.panel_height * std::max(0.1, p.height_weight)));
-    l.title = tm.fit(unit_style(p.title, false), kTitleFont, o.width - 20.0);
+    l.title_lines = tm.wrap(unit_style(p.title, false), kTitleFont, o.width - 20.0, kMaxTitleLines);
+    l.title.clear();
+    for (size_t k = 0; k < l.title_lines.size(); ++k) {
+      l.title += (k ? "\n" : "") + l.title_lines[k];
+      const double w = tm.width(l.title_lines[k], kTitleFont);
+      // centred; the box spans the ascent above the baseline and the descent below it
+      l.title_boxes.push_back(Rect{(o.width - w) / 2, y0 + 8 + k * kTitleLine, w, kTitleFont * 1.2});
+    }
+    const double title_extra = kTitleLine * static_cast<double>(l.title_lines.size() - 1);
     l.x_label = tm.fit(unit_style(p.x_label), kAxisLabelFont, o.width - 20.0);
     l.title_y = y0 + 8 + kTitleFont;
 
     // Legend strip: entries flow left to right under the title and wrap at the canvas width.
-    double lx = left, ly = y0 + 8 + kTitleFont + 10;
+    double lx = left, ly = y0 + 8 + kTitleFont + 10 + title_extra;
     const double max_x = o.width - right;
     for (LegendEntry e : legend_entries(p, L.colours)) {
       const double room = max_x - left - kSwatch - kSwatchGap;
@@ -223,14 +320,19 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
       l.legend.push_back(e);
       lx += w + kEntryGap;
     }
-    const double top = l.legend.empty() ? y0 + 8 + kTitleFont + 10 : ly + kLegendRow + 4;
+    const double top = l.legend.empty() ? y0 + 8 + kTitleFont + 10 + title_extra : ly + kLegendRow + 4;
     const double bottom_margin = 10 + kTickFont + 10 + kAxisLabelFont + 8;  // tick labels and x label
     h = std::max(h, top - y0 + 60 + bottom_margin);  // a long legend makes the panel taller, never the plot tiny
     l.area = Rect{0, y0, static_cast<double>(o.width), h};
     l.plot = Rect{left, top, o.width - left - right, y0 + h - bottom_margin - top};
     l.y_label = tm.fit(unit_style(p.y_label), kAxisLabelFont, l.plot.h);  // it runs along the plot's height
-    for (const auto& m : p.markers)
-      l.marker_px.push_back(usable(m.x, p.log_x) ? L.px(p, l, m.x) : NAN);
+    for (const auto& m : p.markers) {
+      const double x = usable(m.x, p.log_x) ? L.px(p, l, m.x) : NAN;
+      l.marker_px.push_back(x);
+      l.marker_label_box.push_back(std::isfinite(x) && !m.label.empty()
+                                       ? place_marker_label(p, l, L, x, tm.width(m.label, kMarkerFont), l.marker_label_box)
+                                       : Rect{});
+    }
     y0 += h;
   }
   L.height = static_cast<int>(std::ceil(y0));

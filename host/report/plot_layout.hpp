@@ -27,13 +27,22 @@ struct LegendEntry {
 struct PanelLayout {
   Rect area;              // the panel's share of the canvas
   Rect plot;              // the axes box
-  std::string title;      // shortened with an ellipsis if it would not fit
-  double title_y = 0;     // baseline
+  std::string title;      // the title lines joined by '\n' (see title_lines)
+  // A long title wraps at spaces onto up to kMaxTitleLines lines centred on the canvas; the last
+  // is shortened with an ellipsis if the rest still would not fit. Each line's box lies inside
+  // the canvas.
+  std::vector<std::string> title_lines;
+  std::vector<Rect> title_boxes;
+  double title_y = 0;     // baseline of the first title line
   std::string y_label;    // in the common unit style, shortened with an ellipsis if longer than the plot is high
   std::string x_label;    // in the common unit style
   std::vector<LegendEntry> legend;
   AxisTicks x_ticks, y_ticks;  // x_ticks.lo/hi = the data range of the panel's x group
   std::vector<double> marker_px;  // x pixel of each marker inside the plot box (NaN if outside)
+  // Box of each marker's label inside the plot box, beside its line: the first of the places
+  // (top, bottom, middle; right, then left of the line) where it covers no drawn data, else the
+  // one covering the least (empty box when the marker is outside or has no label).
+  std::vector<Rect> marker_label_box;
 };
 
 struct FigureLayout {
@@ -48,9 +57,15 @@ struct FigureLayout {
 // Font sizes (px) every figure uses.
 // Inner margin of the y range inside the plot frame (px).
 inline constexpr double kYInset = 5;
+inline constexpr int kMaxTitleLines = 2;
+inline constexpr double kTitleLine = 20;  // px between title baselines
 inline constexpr double kTitleFont = 16, kLegendFont = 13, kTickFont = 12, kAxisLabelFont = 13, kMarkerFont = 12;
 
 FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions& options);
+
+// How many drawn segments and points of the panel's series (as the renderer draws them: lines,
+// steps with their vertical risers, dots) touch box r, in canvas px.
+int data_touching(const Plot& p, const PanelLayout& l, const FigureLayout& L, const Rect& r);
 
 // Labels in the common unit style whoever wrote them: "degC" -> "°C", and on an axis a unit in
 // brackets "[K]" -> "(K)".

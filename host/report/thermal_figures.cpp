@@ -15,10 +15,21 @@ FigureOptions network_figure_options(const thermal::Network& net) {
 }
 
 Plot recording_speed_panel(const thermal::Recording& rec) {
+  // A recording whose speed_rpm column carries another input (a heater's power) says what it is
+  // in "# speed_rpm_quantity: NAME (UNIT)"; the panel is labelled with that, never as a speed.
+  const std::string quantity = rec.meta_value("speed_rpm_quantity");
   const std::string declared = rec.meta_value("speed_rpm");
-  if (declared.empty()) return speed_panel(hours(rec.time_s), rec.speed_rpm);
-  Plot p = speed_panel(hours(rec.time_s), rec.speed_rpm, "speed_rpm column: " + declared);
-  p.y_label = "speed_rpm";
+  if (quantity.empty() && declared.empty()) return speed_panel(hours(rec.time_s), rec.speed_rpm);
+  if (quantity.empty()) {
+    // Declared in words only: the words as the title (wrapped by the layout), no unit claimed.
+    Plot p = speed_panel(hours(rec.time_s), rec.speed_rpm, "speed_rpm column: " + declared);
+    p.y_label = "speed_rpm column";
+    return p;
+  }
+  const std::string name = quantity.substr(0, quantity.find(" ("));
+  Plot p = speed_panel(hours(rec.time_s), rec.speed_rpm, name + " (recorded in the speed_rpm column)");
+  p.y_label = quantity;
+  p.height_weight = 0.75;  // room for "NAME (UNIT)" along the axis (the layout shortens a label longer than the plot)
   return p;
 }
 

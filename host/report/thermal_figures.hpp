@@ -16,9 +16,10 @@ namespace btsm::report {
 // Colours keyed by the network's node names, in node order: every figure of one network agrees.
 FigureOptions network_figure_options(const thermal::Network& net);
 
-// The recording's speed column under its time axis. A recording that says what its speed_rpm
-// column really holds (a "# speed_rpm: ..." metadata line, e.g. heater power in a converted data
-// set) gets that description as the panel title instead of "Spindle speed".
+// The recording's speed column under its time axis. A recording whose speed_rpm column holds
+// another input declares it with "# speed_rpm_quantity: NAME (UNIT)" (e.g. "heater power (W)" in
+// a converted data set): the panel is titled with NAME and its y axis labelled "NAME (UNIT)". A
+// "# speed_rpm: ..." description alone becomes the (wrapped) title, with no unit claimed.
 Plot recording_speed_panel(const thermal::Recording& rec);
 
 // Measured vs the model's prediction per measured node, the residual per node, and the speed.

@@ -69,6 +69,7 @@ common = [
     f"time_s: s since the first sample (unix time {t0} ns)",
     f"speed_rpm: NOT a speed - electrical heater power in W while heater_on (12.16 V x 1.5388 A = {P_2023_W} W, "
     "measured 2023-06-05 with heater + fan on), 0 while off",
+    "speed_rpm_quantity: heater power (W)",
     "ambient_c: t3 (room sensor); box_avg = average_temperature = (t1 + t2)/2 (the two in-box sensors); fan on except the first 1.6 min",
 ]
 write("calib2023_fit_0-55min.csv", [r for r in rows if r[0] < split], P_2023_W, ("t1", "t2"), common, 0.0)
@@ -85,6 +86,7 @@ common = [
     f"time_s: s since the first sample (unix time {t0} ns)",
     f"speed_rpm: NOT a speed - heater power in W while heater_on, ASSUMED {P_2021_W} W (12.0 V x 10.45 A of the repository's 7-parameter model for this run, "
     "seven_parameters_model/best_parameters.py; not measured), 0 while off",
+    "speed_rpm_quantity: heater power (W)",
     "ambient_c: t1 (room sensor); box_avg = average_temperature = (t2 + t3)/2 (the two in-box sensors); fan on throughout",
 ]
 # The first cut, kept as the counter-example: fit on everything before the first lid opening (no opening,

@@ -31,6 +31,7 @@ def write(name, sel, offset_s, first_is_standstill):
         f.write("# time_s: row index x 60 s (the source has no time column; 1 sample/min per the source report)\n")
         f.write("# speed_rpm: 1000 = placeholder for 'running' (speed not given by the source; one constant operating "
                 "condition assumed, switched on at t = 0)\n")
+        f.write("# speed_rpm_quantity: running (1000 = on)\n")
         f.write("# ambient_c: T15 (ambient sensor); T0 front bearing inside, T1-T4 front bearing housing, "
                 "T12/T13 rear bearing inside/outside, T14 worktable; delta L and the other coolant sensors dropped\n")
         f.write(f"# coolant_c: {COOLANT} (cooling water, most likely the chiller's supply line: the coolest and least "

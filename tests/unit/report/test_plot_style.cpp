@@ -233,3 +233,71 @@ TEST(PlotStyle, UnitsInOneStyleWhoeverWroteTheLabel) {
   EXPECT_EQ(unit_style("measured − model (K)"), "measured − model (K)");
   EXPECT_EQ(unit_style("T[1] at 20 degC", false), "T[1] at 20 °C");  // a title keeps its brackets
 }
+
+TEST(PlotStyle, LongTitlesWrapInsideTheCanvas) {
+  // The incubator's declared input: one line of it ran off (was cut at) the right edge.
+  const std::string declared =
+      "speed_rpm column: NOT a speed - heater power in W while heater_on, ASSUMED 125.4 W (12.0 V x 10.45 A of the "
+      "repository's 7-parameter model for this run, seven_parameters_model/best_parameters.py; not measured), 0 while off";
+  Plot p{declared, kTimeAxis, kSpeedAxis, {model("a", {0, 1}, {0, 1}), model("b", {0, 1}, {1, 0})}};
+  for (int width : {480, 800, 1000}) {
+    FigureOptions o;
+    o.width = width;
+    const FigureLayout L = layout_figure({p, p}, o);
+    for (const auto& panel : L.panels) {
+      ASSERT_GE(panel.title_lines.size(), 2u) << "a title this long wraps at " << width;
+      ASSERT_LE(panel.title_lines.size(), static_cast<size_t>(kMaxTitleLines));
+      ASSERT_EQ(panel.title_boxes.size(), panel.title_lines.size());
+      for (size_t k = 0; k < panel.title_boxes.size(); ++k) {
+        const Rect& t = panel.title_boxes[k];
+        EXPECT_TRUE(canvas(L).contains(t)) << "title line '" << panel.title_lines[k] << "' leaves the canvas at width " << width;
+        EXPECT_TRUE(panel.area.contains(t)) << panel.title_lines[k];
+        EXPECT_FALSE(t.overlaps(panel.plot)) << panel.title_lines[k];
+        for (const auto& e : panel.legend) EXPECT_FALSE(t.overlaps(e.box)) << panel.title_lines[k] << " / " << e.text;
+        if (k > 0) EXPECT_FALSE(t.overlaps(panel.title_boxes[k - 1]));
+      }
+    }
+  }
+  // Wide enough for two lines: nothing is lost, the lines are the title's words in order.
+  FigureOptions wide;
+  wide.width = 1000;
+  const PanelLayout l = layout_figure({p}, wide).panels[0];
+  ASSERT_EQ(l.title_lines.size(), 2u);
+  EXPECT_EQ(l.title_lines[0] + " " + l.title_lines[1], declared);
+  // A short title stays one line.
+  EXPECT_EQ(layout_figure({Plot{"Spindle speed", kTimeAxis, kSpeedAxis, {}}}, wide).panels[0].title_lines.size(), 1u);
+}
+
+TEST(PlotStyle, MarkerLabelCoversNoData) {
+  // The demo's alarm timeline: the diagnosis steps NORMAL -> WARN -> ALARM right after the fault
+  // marker, at the top of the panel; the label "fault starts" used to sit on that step.
+  std::vector<double> t, state;
+  for (int k = 0; k <= 1200; ++k) {
+    const double h = 0.01 * k;
+    t.push_back(h);
+    state.push_back(h < 4.12 ? 0 : h < 4.16 ? 1 : 2);
+  }
+  Plot diag{"Module diagnosis", kTimeAxis, "overall state", {Series{"overall state", t, state, Series::Style::Step}}};
+  diag.height_weight = 0.7;
+  diag.markers.push_back({4.0, "fault starts"});
+  Plot temps{"Production", kTimeAxis, kTemperatureAxis, {model("rear_bearing", t, state)}};
+  temps.markers.push_back({4.0, "fault starts"});
+  temps.markers.push_back({4.05, "second marker"});
+  const FigureLayout L = layout_figure({temps, diag}, {});
+  for (size_t i = 0; i < 2; ++i) {
+    const Plot& p = i == 0 ? temps : diag;
+    const PanelLayout& l = L.panels[i];
+    ASSERT_EQ(l.marker_label_box.size(), p.markers.size());
+    for (size_t m = 0; m < p.markers.size(); ++m) {
+      const Rect& box = l.marker_label_box[m];
+      EXPECT_GT(box.w, 0);
+      EXPECT_TRUE(l.plot.contains(box)) << p.markers[m].label;
+      EXPECT_EQ(data_touching(p, l, L, box), 0) << p.markers[m].label << " covers data";
+      for (size_t o = 0; o < m; ++o) EXPECT_FALSE(box.overlaps(l.marker_label_box[o])) << p.markers[m].label;
+    }
+  }
+  // The test can fail: the old place (top, right of the line) covers the step.
+  const PanelLayout& d = L.panels[1];
+  const Rect old{d.marker_px[0] + 2, d.plot.y + 4, d.marker_label_box[0].w, d.marker_label_box[0].h};
+  EXPECT_GT(data_touching(diag, d, L, old), 0);
+}

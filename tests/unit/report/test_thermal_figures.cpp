@@ -96,3 +96,24 @@ TEST(ThermalFigures, HeatMarksTheChosenAlpha) {
   // The heat of the last piece is drawn until the recording ends.
   EXPECT_DOUBLE_EQ(panels[0].series[0].x.back(), rec.time_s.back() / 3600.0);
 }
+
+TEST(ThermalFigures, AnotherInputInTheSpeedColumnIsLabelledAsDeclared) {
+  const auto net = thermal::preset_network("spindle4");
+  thermal::Recording rec = small_recording(net);
+  rec.meta.emplace_back("speed_rpm", "NOT a speed - heater power in W while heater_on, 0 while off");
+  rec.meta.emplace_back("speed_rpm_quantity", "heater power (W)");
+  const Plot p = recording_speed_panel(rec);
+  EXPECT_EQ(p.y_label, "heater power (W)");
+  EXPECT_EQ(p.title.rfind("heater power", 0), 0u) << p.title;
+  EXPECT_EQ(p.y_label.find("speed"), std::string::npos);
+  // The whole label is drawn: the panel is high enough for it.
+  const FigureLayout L = layout_figure({p}, {});
+  EXPECT_EQ(L.panels[0].y_label, "heater power (W)");
+  // Words only: the words are the title, the axis claims no unit.
+  rec.meta.pop_back();
+  const Plot words = recording_speed_panel(rec);
+  EXPECT_NE(words.title.find("heater power in W"), std::string::npos);
+  EXPECT_EQ(words.y_label.find("(rpm)"), std::string::npos) << words.y_label;
+  // A real spindle recording keeps its speed axis.
+  EXPECT_EQ(recording_speed_panel(small_recording(net)).y_label, kSpeedAxis);
+}
