@@ -3,6 +3,7 @@
 #include "common/model_blob.hpp"
 #include "host/link/ble_scan.hpp"
 #include "host/link/device_keys.hpp"
+#include "host/link/model_blob_file.hpp"
 #include "host/link/model_flash.hpp"
 #include "host/link/usb_devices.hpp"
 
@@ -156,6 +157,12 @@ std::vector<std::string> model_channel_map(Session& session, const ModuleIdentit
     lines.push_back(ch.text);
   }
   j["model_channel_map"] = cm;
+  if (am.n_breakpoints >= 2) {
+    json sp = json::array();
+    for (uint8_t i = 1; i < am.n_breakpoints; ++i) sp.push_back(am.speed_rpm[i]);
+    j["model_speeds_rpm"] = sp;
+    lines.insert(lines.begin(), "speeds: " + describe_model_speeds(am.speed_rpm, am.n_breakpoints));
+  }
   for (const auto& w : mc.conflicts) lines.push_back("CONFLICT: " + w);
   for (const auto& w : mc.warnings) lines.push_back("warning: " + w);
   return lines;

@@ -1,10 +1,13 @@
 // btsm flash-model: authenticated upload of a reduced model blob, with read-back.
 #include "cmd_link_support.hpp"
 #include "host/link/device_keys.hpp"
+#include "host/io/json_input.hpp"
+#include "host/link/model_blob_file.hpp"
 #include "host/link/model_flash.hpp"
 #include "host/link/recorder.hpp"
 
 #include <fmt/core.h>
+#include <nlohmann/json.hpp>
 #include <unistd.h>
 
 #include <filesystem>
@@ -69,10 +72,35 @@ void check_map_before_flashing(const FlashModelArgs& a, Session& session, const 
   std::cerr << "flash-model: WARNING (forced): the channel map disagrees:" << all << "\n";
 }
 
+// reduced.json keeps where the module's model holds in speed (reduce's speed check): said before
+// flashing, loudly when reduce was forced past a gap. A raw blob does not carry it.
+void print_valid_speed_range(const std::string& file) {
+  nlohmann::json j;
+  try {
+    j = io::read_json_file(file, kMaxModelFileBytes, "model file");
+  } catch (const std::exception&) {
+    return;  // a raw blob (or a JSON load_model_blob already accepted without the check)
+  }
+  if (!j.is_object() || !j.contains("speed_coverage") || !j["speed_coverage"].is_object()) return;
+  const auto& c = j["speed_coverage"];
+  const auto& r = c.value("valid_speed_range_rpm", nlohmann::json::array());
+  if (r.is_array() && r.size() == 2 && r[0].is_number() && r[1].is_number())
+    std::cerr << fmt::format("flash-model: valid (reduce's speed check) for {:.0f}-{:.0f} rpm\n", r[0].get<double>(), r[1].get<double>());
+  if (c.contains("gaps") && c["gaps"].is_array())
+    for (const auto& g : c["gaps"])
+      if (g.is_object())
+        std::cerr << fmt::format("flash-model: WARNING: ch{}: the model is off by {:.2f} K at {:.0f}-{:.0f} rpm (reduce was forced): a "
+                                 "healthy spindle running there for long WARNs\n",
+                                 g.value("channel", 0), g.value("worst_steady_error_K", 0.0), g.value("from_rpm", 0.0),
+                                 g.value("to_rpm", 0.0));
+}
+
 void run_flash_model(const FlashModelArgs& a) {
   const auto blob = load_model_blob(a.file);
   const std::string why = check_model_blob(blob);
   if (!why.empty()) throw CommandError(kExitUsage, a.file + ": " + why);
+  std::cerr << "flash-model: " << describe_model_speeds(blob) << "\n";
+  print_valid_speed_range(a.file);
   auto conn = connect(a.link);
   const auto info = conn.session->get_info();
   check_map_before_flashing(a, *conn.session, blob);

@@ -6,6 +6,7 @@
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
 #include "host/thermal/reduce.hpp"
+#include "host/thermal/speed_coverage.hpp"
 #include "host/thermal/validate.hpp"
 #include "host/report/thermal_figures.hpp"
 
@@ -386,12 +387,32 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
           "of normal running (--calibrate-bands RECORDINGS...), raise the thresholds, or --force",
           ch + 1, r.deviation.quantized_vs_full_K[static_cast<std::size_t>(ch)], hi, lo, d.drift_K, d.low_drift_K,
           d.warn_evidence_K_min, d.low_warn_evidence_K_min);
-      if (!a.force) throw CommandError(kExitUsage, msg);
+      if (!a.force) throw CommandError(kExitFailure, msg);
       std::cerr << "reduce: WARNING (forced): " << msg << "\n";
     }
   }
+  // Where in speed the module's model holds (the network knows every speed; the module only its
+  // breakpoints): checked up to the top breakpoint or the calibration recordings' top speed.
+  SpeedCoverageOptions co;
+  co.top_rpm = o.duty_max_rpm;
+  const SpeedCoverage cover = check_speed_coverage(net, model.params, r, co);
+  std::cerr << fmt::format("reduce: the module's model is valid (steady error within {:g} x the drift) for {:.0f}-{:.0f} rpm "
+                           "of the {:.0f}-{:.0f} rpm checked\n",
+                           cover.drift_fraction, cover.valid_from_rpm, cover.valid_to_rpm, 0.0, cover.speed_rpm.back());
+  if (!cover.covers_all) {
+    std::string lines;
+    for (const auto& l : describe_gaps(cover)) lines += "\n  " + l;
+    const std::string msg = fmt::format(
+        "the module's model is off by more than its bands at speeds the spindle may run: a healthy spindle running "
+        "there for long WARNs, then ALARMs:{}\nAdd breakpoints in those ranges (--speeds, at most {}), e.g. one where the "
+        "lowest gap ends; or --force if the spindle never runs there",
+        lines, kModelMaxBreakpoints - 1);
+    if (!a.force) throw CommandError(kExitFailure, msg);
+    std::cerr << "reduce: WARNING (forced): " << msg << "\n";
+  }
   json j = reduction_to_json(net, r, o);
   j["model"] = a.model;
+  j["speed_coverage"] = speed_coverage_to_json(cover);
   if (!calibration.is_null()) j["detector_calibration"] = calibration;
   save_json(a.out, j);
   std::cerr << "reduce: wrote " << a.out << "\n";
@@ -495,10 +516,16 @@ void register_sysid_commands(CLI::App& app) {
         "overrides it with five entries for ch1..ch5: a node name, 'ambient' or 'none'.\n"
         "Detector (per channel, two one-sided CUSUMs of measured - predicted): --calibrate-bands RECORDINGS sets drift and\n"
         "thresholds from the model's own residuals on recordings of normal running (rule printed); hand-set values\n"
-        "are refused when the model's own error would reach them, unless --force.\n"
-        "Example: btsm reduce model.json --speeds 4000,6000,8000 --calibrate-bands warmup_*.csv --out reduced.json --blob model.bin");
+        "are refused (exit 1) when the model's own error would reach them, unless --force: the defaults are a start\n"
+        "for --force experiments, not bands for a module.\n"
+        "Speed range: the module interpolates its breakpoints linearly in speed (0 rpm = the stop); reduce compares\n"
+        "the module's steady rise with the network's every 25 rpm up to the top breakpoint (or the calibration\n"
+        "recordings' top speed), prints the range where every channel is within half its drift, and refuses (exit 1)\n"
+        "a model that is off by more at some speed, naming the channels and speeds (add breakpoints there, or --force\n"
+        "when the spindle never runs there).\n"
+        "Example: btsm reduce model.json --speeds 500,2000,4000,6000,8000 --calibrate-bands warmup_*.csv --out reduced.json --blob model.bin");
     c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(CLI::ExistingFile);
-    c->add_option("--speeds", a->speeds, "Operating breakpoints in rpm, ascending, e.g. 4000,6000,8000 (at most 6)")->required();
+    c->add_option("--speeds", a->speeds, "Running breakpoints in rpm, ascending, at most 6, e.g. 500,2000,4000,6000,8000: cover every speed the spindle runs")->required();
     c->add_option("--out", a->out, "Reduced model JSON to write")->required();
     c->add_option("--blob", a->blob, "Also write the module's model blob (binary, 464 bytes)");
     c->add_option("--dt", a->dt, "Module sample period in s (default 5)")->check(CLI::Range(0.1, 60.0));
@@ -518,7 +545,8 @@ void register_sysid_commands(CLI::App& app) {
                   "WARN threshold for a probe colder than its model, K min (default 4; 0 = off)");
     c->add_option("--abs-limit", a->detector.abs_limit_c, "Absolute temperature limit in degC (default 80)");
     c->add_option("--max-rise", a->detector.max_rise_K_per_min, "Maximum rate of rise in K/min (default 2; 0 = off)");
-    c->add_flag("--force", a->force, "Accept hand-set detector thresholds the model's own error would reach");
+    c->add_flag("--force", a->force,
+                "Accept hand-set detector thresholds the model's own error would reach, and speeds where the model is off");
     c->add_flag("--json", a->json_out, "Print the reduced model JSON to stdout");
     c->callback([a, c] {
       std::vector<std::string> given;

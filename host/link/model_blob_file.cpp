@@ -1,5 +1,6 @@
 #include "host/link/model_blob_file.hpp"
 
+#include "common/byte_order.hpp"
 #include "common/model_blob.hpp"
 #include "host/io/hex.hpp"
 #include "host/io/input_error.hpp"
@@ -71,6 +72,26 @@ std::string check_model_blob(std::span<const uint8_t> blob) {
   if (c.breakpoint != 0xFF) where = fmt::format(" (breakpoint {})", c.breakpoint);
   else if (c.channel != 0xFF) where = fmt::format(" (channel {})", c.channel + 1);
   return std::string(model_status_name(c.status)) + where;
+}
+
+std::string describe_model_speeds(const uint16_t* speeds, uint8_t n) {
+  if (n < 2) return "no running breakpoint";
+  std::string list;
+  for (uint8_t i = 1; i < n; ++i) list += fmt::format("{}{}", i > 1 ? ", " : "", speeds[i]);
+  // Why say it: below the lowest breakpoint the module interpolates towards the stop, above the top
+  // one it keeps the top one; `reduce` printed (and reduced.json keeps) where that holds.
+  return fmt::format("running breakpoints {} rpm (0 rpm = stopped; interpolated between them, above {} rpm the {} rpm model; "
+                     "the range where it holds is what `reduce` printed as valid)",
+                     list, speeds[n - 1], speeds[n - 1]);
+}
+
+std::string describe_model_speeds(std::span<const uint8_t> blob) {
+  if (blob.size() < kBlobOffSpeeds + 2 * kModelMaxBreakpoints) return {};
+  const uint8_t n = blob[kBlobOffBreakpointCount];
+  if (n > kModelMaxBreakpoints) return {};
+  uint16_t speeds[kModelMaxBreakpoints] = {};
+  for (uint8_t i = 0; i < n; ++i) speeds[i] = get_le16(blob.data() + kBlobOffSpeeds + 2 * i);
+  return describe_model_speeds(speeds, n);
 }
 
 }  // namespace btsm::link

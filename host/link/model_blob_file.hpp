@@ -30,4 +30,10 @@ std::vector<uint8_t> model_blob_from_content(std::string_view content, const std
 // empty string when valid, else the reason.
 std::string check_model_blob(std::span<const uint8_t> blob);
 
+// The speeds a model knows, for `flash-model` and `info`: "running breakpoints 500, 2000, ..., 8000
+// rpm (0 rpm = stopped; ...)". `speeds` holds n entries, entry 0 the stop (blob layout).
+std::string describe_model_speeds(const uint16_t* speeds, uint8_t n);
+// The same from a blob (empty when it is too short to hold them).
+std::string describe_model_speeds(std::span<const uint8_t> blob);
+
 }  // namespace btsm::link

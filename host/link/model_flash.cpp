@@ -141,6 +141,12 @@ ActiveModelMap read_active_model_map(Session& session) {
   if (m.version != kReducedModelVersion) return m;
   const ModelData r = session.model_read(static_cast<uint16_t>(kBlobOffRoles), kModelChannels);
   for (int j = 0; j < 5 && j < r.len; ++j) m.roles[j] = r.data[j];
+  const ModelData n = session.model_read(static_cast<uint16_t>(kBlobOffBreakpointCount), 1);
+  const ModelData sp = session.model_read(static_cast<uint16_t>(kBlobOffSpeeds), 2 * kModelMaxBreakpoints);
+  if (n.len == 1 && n.data[0] <= kModelMaxBreakpoints && sp.len == 2 * kModelMaxBreakpoints) {
+    m.n_breakpoints = n.data[0];
+    for (int i = 0; i < kModelMaxBreakpoints; ++i) m.speed_rpm[i] = get_le16(sp.data + 2 * i);
+  }
   return m;
 }
 

@@ -76,6 +76,8 @@ bool blob_channel_roles(std::span<const uint8_t> blob, uint8_t roles[5]);
 struct ActiveModelMap {
   uint8_t version = 0;
   uint8_t roles[5] = {};
+  uint8_t n_breakpoints = 0;          // the speeds the model knows (entry 0 = the stop)
+  uint16_t speed_rpm[7] = {};
 };
 ActiveModelMap read_active_model_map(Session& session);
 

@@ -2,7 +2,8 @@
 // process, HOME in a temp dir) against the native simulated module on a pty:
 //   set-config channel_role_5 shaft, record the identification runs, fit, reduce with
 //   --calibrate-bands on those recordings, keys import, flash-model, monitor 12 h of production
-//   with stops and speed steps -- a healthy spindle must stay free of ALARM;
+//   with stops and speed steps, also below the lowest warm-up speed -- a healthy spindle must stay
+//   NORMAL (no WARN, no ALARM);
 // and with the rear- and front-bearing probes swapped on the machine (and the roles set so): the
 // channel map goes from the recordings' roles through fit and reduce into the blob, flash-model
 // agrees with the module, and a 30 W rear-bearing fault raises ALARM on the channel that carries
@@ -78,12 +79,12 @@ void commission(const Home& h, const std::string& port, const std::vector<std::s
   }
   Result r = h.btsm("fit" + files + " --preset spindle4 --sum-c 20478.7 --out " + h.path + "/model.json");
   ASSERT_EQ(r.code, 0) << r.err;
-  r = h.btsm("reduce " + h.path + "/model.json --speeds 4000,6000,8000 --calibrate-bands" + files + " --out " + h.path +
+  r = h.btsm("reduce " + h.path + "/model.json --speeds 500,2000,4000,6000,8000 --calibrate-bands" + files + " --out " + h.path +
              "/reduced.json --blob " + h.path + "/model.bin");
   ASSERT_EQ(r.code, 0) << r.err;
   c.log.push_back(r.err + r.out);
   ASSERT_EQ(h.btsm(fmt::format("keys import {:08x} {}", device_key::kDevDeviceId, dev_key_hex())).code, 0);
-  r = h.btsm("flash-model --port " + port + " " + h.path + "/model.bin");
+  r = h.btsm("flash-model --port " + port + " " + h.path + "/reduced.json");
   ASSERT_EQ(r.code, 0) << r.err;
   c.log.push_back(r.err);
 }
@@ -104,8 +105,9 @@ TEST(ReadmeWorkflow, RecordFitReduceFlashAndTwelveHoursFaultFree) {
   sim::SimModuleOptions o;
   o.pty_path = h.path + "/btsm-sim";
   o.plant.ch5 = sim::Ch5Mode::ShaftEnd;
-  // 12 h of production after the identification: speed steps and 30-minute stops.
-  o.plant.speed = profile_with("1.5h@5000,1h@6500,0.5h@0,2h@6000,0.5h@0,1h@4500,1.5h@7000,0.5h@0,2h@5500,1.5h@6000,1h@0");
+  // 12 h of production after the identification: speed steps and 30-minute stops, and 2 h below
+  // the lowest warm-up speed (a model reduced at the warm-up speeds only WARNed there for hours).
+  o.plant.speed = profile_with("1.5h@5000,1h@6500,0.5h@0,1h@6000,1h@3000,0.5h@0,1h@1200,1.5h@7000,0.5h@0,2h@5500,1.5h@6000,1h@0");
   sim::SimModule sim(o);
   sim.start();
   Commissioned c;
@@ -115,6 +117,10 @@ TEST(ReadmeWorkflow, RecordFitReduceFlashAndTwelveHoursFaultFree) {
   EXPECT_NE(c.log[0].find("ch4 = T4 ambient"), std::string::npos) << c.log[0];
   EXPECT_NE(c.log[0].find("ch5 = T5 shaft"), std::string::npos) << c.log[0];
   EXPECT_EQ(c.log[1].find("DISAGREE"), std::string::npos) << c.log[1];
+  // The speed range: reduce checked every speed up to the top breakpoint, flash-model names them.
+  EXPECT_NE(c.log[0].find("for 0-8000 rpm"), std::string::npos) << c.log[0];
+  EXPECT_NE(c.log[1].find("running breakpoints 500, 2000, 4000, 6000, 8000 rpm"), std::string::npos) << c.log[1];
+  EXPECT_NE(c.log[1].find("valid (reduce's speed check) for 0-8000 rpm"), std::string::npos) << c.log[1];
   const auto samples = monitor(h, o.pty_path, 12 * 720);
   ASSERT_GE(samples.size(), 12u * 720u);
   int alarm = 0, warn = 0, predicted = 0;
@@ -125,6 +131,7 @@ TEST(ReadmeWorkflow, RecordFitReduceFlashAndTwelveHoursFaultFree) {
   }
   std::printf("12 h fault-free after the README workflow: %d ALARM, %d WARN samples of %zu\n", alarm, warn, samples.size());
   EXPECT_EQ(alarm, 0);
+  EXPECT_EQ(warn, 0) << "a healthy spindle stays NORMAL";
   EXPECT_EQ(predicted, static_cast<int>(samples.size())) << "the model predicts every sample";
   sim.stop();
   EXPECT_TRUE(sim.error().empty()) << sim.error();
@@ -155,6 +162,7 @@ TEST(SwappedProbes, TheModuleDiagnosesTheRightNode) {
   EXPECT_NE(info.out.find("ch1: model front_bearing, module front_bearing"), std::string::npos) << info.out;
   EXPECT_NE(info.out.find("ch3: model rear_bearing, module rear_bearing"), std::string::npos) << info.out;
   EXPECT_EQ(info.out.find("CONFLICT"), std::string::npos) << info.out;
+  EXPECT_NE(info.out.find("speeds: running breakpoints 500, 2000, 4000, 6000, 8000 rpm"), std::string::npos) << info.out;
   // The labels' map (ch1 = rear bearing) is refused before anything is sent.
   Result r = h.btsm("reduce " + h.path + "/model.json --speeds 4000,6000,8000 --channels rear_bearing,housing,front_bearing,ambient,shaft "
                     "--force --out " + h.path + "/wrong.json --blob " + h.path + "/wrong.bin");

@@ -1,0 +1,139 @@
+#include "speed_coverage.hpp"
+
+#include "common/model_step.hpp"
+
+#include <fmt/format.h>
+
+#include <Eigen/LU>
+
+#include <algorithm>
+#include <cmath>
+#include <stdexcept>
+
+namespace btsm::thermal {
+
+namespace {
+
+// The module's steady rise (K) of channel j running at speed_rpm: the fixed point of
+// T' = T_amb + a (T - T_amb) + b, i.e. b / (1 - a), with the coefficients the module interpolates.
+double module_steady_rise_K(const ReducedModel& m, int j, double speed_rpm) {
+  ModelBreakpoint p;
+  coefficients_at(m, static_cast<uint16_t>(std::lround(speed_rpm)), 0, p);
+  const double a = static_cast<double>(p.ch[j].a_q30) / static_cast<double>(1L << 30);
+  const double b_K = static_cast<double>(p.ch[j].b) / 1024.0 / 1000.0;
+  return a < 1.0 ? b_K / (1.0 - a) : 0.0;
+}
+
+}  // namespace
+
+SpeedCoverage check_speed_coverage(const Network& net, const Eigen::VectorXd& params, const ScheduledReduction& r,
+                                   const SpeedCoverageOptions& opts) {
+  if (!(opts.step_rpm > 0) || !(opts.drift_fraction > 0))
+    throw std::invalid_argument("speed coverage: step and drift fraction must be > 0");
+  const ReducedModel& q = r.quantized;
+  const uint8_t n = q.schedule.n_breakpoints;
+  if (n < 2) throw std::invalid_argument("speed coverage: the model has no running breakpoint");
+  const double top_bp = q.schedule.speed_rpm[n - 1];
+  const double top = std::min(65534.0, opts.top_rpm > 0 ? std::max(opts.top_rpm, top_bp) : top_bp);
+  SpeedCoverage c;
+  c.drift_fraction = opts.drift_fraction;
+  for (double s = opts.step_rpm; s <= top + 1e-9; s += opts.step_rpm) c.speed_rpm.push_back(s);
+  if (c.speed_rpm.empty() || c.speed_rpm.back() < top) c.speed_rpm.push_back(top);
+  const std::size_t ns = c.speed_rpm.size();
+  std::vector<bool> ok(ns, true);
+  std::vector<int> worst_ch(ns, -1);
+  std::vector<double> worst_excess(ns, 0.0), worst_err(ns, 0.0), worst_allowed(ns, 0.0);
+  for (std::size_t i = 0; i < ns; ++i) {
+    const NodeMatrices mm = assemble(net, params, c.speed_rpm[i]);
+    Eigen::FullPivLU<Eigen::MatrixXd> lu(mm.G);
+    if (!lu.isInvertible()) throw std::runtime_error("speed coverage: the network has no path to ambient");
+    const Eigen::VectorXd rise = lu.solve(mm.heat_w);
+    for (int j = 0; j < 5; ++j) {
+      const int nd = r.channels[static_cast<std::size_t>(j)].node;
+      if (nd < 0 || !model_predicts(q.schedule.enabled_mask, q.schedule.ambient_channel, static_cast<uint8_t>(j))) continue;
+      const double e = rise[nd] - module_steady_rise_K(q, j, c.speed_rpm[i]);
+      c.error_K[static_cast<std::size_t>(j)].push_back(e);
+      c.worst_abs_K[static_cast<std::size_t>(j)] = std::max(c.worst_abs_K[static_cast<std::size_t>(j)], std::abs(e));
+      const ChannelDetector& d = r.model.detector[j];
+      // Below the model counts only where the lower evidence can WARN.
+      const double allowed = opts.drift_fraction * (e >= 0 ? d.drift_K : d.low_drift_K);
+      const bool side_on = e >= 0 || d.low_warn_evidence_K_min > 0;
+      const double excess = std::abs(e) - allowed;
+      if (side_on && excess > 0) {
+        ok[i] = false;
+        if (excess > worst_excess[i]) {
+          worst_excess[i] = excess;
+          worst_ch[i] = j;
+          worst_err[i] = e;
+          worst_allowed[i] = allowed;
+        }
+      }
+    }
+  }
+  // Gaps: runs of uncovered speeds, each with its worst channel.
+  for (std::size_t i = 0; i < ns;) {
+    if (ok[i]) {
+      ++i;
+      continue;
+    }
+    SpeedGap g;
+    g.from_rpm = c.speed_rpm[i];
+    double worst = -1;
+    for (; i < ns && !ok[i]; ++i) {
+      g.to_rpm = c.speed_rpm[i];
+      if (worst_excess[i] > worst) {
+        worst = worst_excess[i];
+        g.channel = worst_ch[i];
+        g.worst_error_K = worst_err[i];
+        g.allowed_K = worst_allowed[i];
+      }
+    }
+    c.gaps.push_back(g);
+  }
+  c.covers_all = c.gaps.empty();
+  // The covered run around the top breakpoint (a model that is wrong there has none).
+  std::size_t k = ns;
+  for (std::size_t i = 0; i < ns; ++i)
+    if (c.speed_rpm[i] >= top_bp - 1e-9) {
+      k = i;
+      break;
+    }
+  if (k < ns && ok[k]) {
+    std::size_t lo = k, hi = k;
+    while (lo > 0 && ok[lo - 1]) --lo;
+    while (hi + 1 < ns && ok[hi + 1]) ++hi;
+    c.valid_from_rpm = lo == 0 ? 0.0 : c.speed_rpm[lo];
+    c.valid_to_rpm = c.speed_rpm[hi];
+  }
+  return c;
+}
+
+std::vector<std::string> describe_gaps(const SpeedCoverage& c) {
+  std::vector<std::string> lines;
+  for (const auto& g : c.gaps)
+    lines.push_back(fmt::format("ch{}: {:.0f}-{:.0f} rpm: a healthy spindle settles up to {:.2f} K {} the model (allowed {:.2f} K, "
+                                "{:g} x its drift)",
+                                g.channel + 1, g.from_rpm, g.to_rpm, std::abs(g.worst_error_K),
+                                g.worst_error_K >= 0 ? "above" : "below", g.allowed_K, c.drift_fraction));
+  return lines;
+}
+
+nlohmann::json speed_coverage_to_json(const SpeedCoverage& c) {
+  nlohmann::json j;
+  j["rule"] = fmt::format("steady error (network - module, after a long run at the speed) within {:g} x the channel's drift, "
+                          "checked every {:g} rpm",
+                          c.drift_fraction, c.speed_rpm.size() > 1 ? c.speed_rpm[1] - c.speed_rpm[0] : 0.0);
+  j["valid_speed_range_rpm"] = {c.valid_from_rpm, c.valid_to_rpm};
+  j["covers_all_checked_speeds"] = c.covers_all;
+  j["checked_up_to_rpm"] = c.speed_rpm.empty() ? 0.0 : c.speed_rpm.back();
+  j["gaps"] = nlohmann::json::array();
+  for (const auto& g : c.gaps)
+    j["gaps"].push_back({{"from_rpm", g.from_rpm}, {"to_rpm", g.to_rpm}, {"channel", g.channel + 1},
+                         {"worst_steady_error_K", g.worst_error_K}, {"allowed_K", g.allowed_K}});
+  j["worst_steady_error_K"] = nlohmann::json::object();
+  for (int ch = 0; ch < 5; ++ch)
+    if (!c.error_K[static_cast<std::size_t>(ch)].empty()) j["worst_steady_error_K"]["ch" + std::to_string(ch + 1)] = c.worst_abs_K[static_cast<std::size_t>(ch)];
+  return j;
+}
+
+}  // namespace btsm::thermal
