@@ -31,12 +31,15 @@ bool has_time_constant(EffectKind k) {
          k == EffectKind::LatentMass;
 }
 
+bool ends_with(const std::string& s, const std::string& suffix) {
+  return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
+}
+
 // The smallest |value| / sigma of the key parameters of one node of an effect (named "..._<node>").
 double node_z(const AugmentedModel& am, const th::FitResult& fr, const std::string& node) {
   double z = std::numeric_limits<double>::infinity();
-  const std::string suffix = "_" + node;
   for (const auto& name : am.key_params) {
-    if (name.size() < suffix.size() || name.compare(name.size() - suffix.size(), suffix.size(), suffix) != 0) continue;
+    if (!ends_with(name, "_" + node)) continue;
     const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
     z = std::min(z, est.sigma > 0 ? std::abs(est.value) / est.sigma : (est.value != 0 ? 1e9 : 0.0));
   }
@@ -156,8 +159,10 @@ std::map<std::string, double> start_values(const th::Network& base, const Eigen:
 
 // The options of a joint refit of base + effect (of the effect alone when the base is held): from
 // `start`, with the effect's rest states, its impulses on `recs` and the capacitance held_for holds.
+// `also_hold`: effect parameters held besides the scale (those the data cannot see); names the
+// augmented network lacks are skipped.
 th::FitOptions joint_options(const CandidateContext& ctx, const AugmentedModel& am, const Eigen::VectorXd& start,
-                             const std::vector<th::Recording>& recs) {
+                             const std::vector<th::Recording>& recs, const std::vector<std::string>& also_hold = {}) {
   th::FitOptions f;
   f.staged = false;
   f.start = start;
@@ -166,6 +171,10 @@ th::FitOptions joint_options(const CandidateContext& ctx, const AugmentedModel& 
   f.extra_heat_w = impulses_for(am, recs);
   f.initial_state_at_ambient = am.rest_nodes;
   f.hold = held_for(ctx, am);
+  for (const auto& h : also_hold)
+    if (std::find(f.hold.begin(), f.hold.end(), h) == f.hold.end() &&
+        std::find(am.effect_params.begin(), am.effect_params.end(), h) != am.effect_params.end())
+      f.hold.push_back(h);
   if (!ctx.fit_base) f.free_only = am.effect_params;
   return f;
 }
@@ -173,7 +182,7 @@ th::FitOptions joint_options(const CandidateContext& ctx, const AugmentedModel& 
 // A fitted augmented model into its candidate: the effect as fitted (its nodes, network, values,
 // the states it adds) and the evidence for it.
 void record_fit(const CandidateContext& ctx, const AugmentedModel& am, const EffectSpec& spec, const th::FitResult& fr,
-                CandidateResult& cr) {
+                CandidateResult& cr, const std::vector<std::string>& also_hold = {}) {
   const th::Network& base = *ctx.base;
   cr.spec = spec;
   cr.label = effect_label(spec, base);
@@ -185,7 +194,7 @@ void record_fit(const CandidateContext& ctx, const AugmentedModel& am, const Eff
   cr.rest_nodes = am.rest_nodes;
   cr.key_params = am.key_params;
   cr.effect_params = am.effect_params;
-  cr.held = held_for(ctx, am);
+  cr.held = joint_options(ctx, am, fr.params, {}, also_hold).hold;
   fill_evidence(ctx, am, spec, fr, cr);
   cr.status = "fitted";
 }
@@ -309,8 +318,9 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     AugmentedModel am = std::move(best_am);
     EffectSpec spec = best_spec;
     // The joint refit of every parameter (or, with a fixed base, of the effect alone) from `start`.
+    std::vector<std::string> nuisance;  // effect parameters held because the data cannot see them
     const auto joint = [&](const AugmentedModel& a, const Eigen::VectorXd& start) {
-      const th::FitOptions f2 = joint_options(ctx, a, start, refit);
+      const th::FitOptions f2 = joint_options(ctx, a, start, refit, nuisance);
       return th::fit_network(a.net, refit, f2);
     };
     th::FitResult fr = best;
@@ -351,7 +361,23 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
       am = std::move(a2);
       fr = std::move(f2);
     }
-    record_fit(ctx, am, spec, fr, cr);
+    // A non-key effect parameter the refit cannot identify (e.g. the conductance of a lagged
+    // ambient to the measured one when the lag is a pure delay: only C/g is seen) is held at its
+    // value and the rest refitted, so the key parameter's sigma is not that unseen direction's.
+    if (ctx.fit_base) {
+      for (const auto& name : am.effect_params) {
+        if (std::find(am.key_params.begin(), am.key_params.end(), name) != am.key_params.end()) continue;
+        const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
+        if (est.status == th::Identifiability::NotIdentifiable || est.at_bound) nuisance.push_back(name);
+      }
+      if (!nuisance.empty()) {
+        th::FitResult f3 = joint(am, fr.params);
+        say(fmt::format("residual:     {}: {} not identifiable, held at {:.4g}; refit rms {:.4g} K", cr.label, nuisance.front(),
+                        fr.params[am.net.param_index(nuisance.front())], f3.rms_K));
+        fr = std::move(f3);
+      }
+    }
+    record_fit(ctx, am, spec, fr, cr, nuisance);
   } catch (const std::exception& e) {
     cr.status = "failed";
     cr.reason = std::string("fit failed: ") + e.what();
@@ -370,9 +396,52 @@ CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateRe
   for (const auto& name : c.effect_params) values[name] = c.values[c.net.param_index(name)];
   if (spec.kind == EffectKind::HeatSourceTransient) values["g_transient_decay"] += values["g_transient_" + dropped];
   AugmentedModel am = augment(base, c.values.head(base.param_count()), spec, values);
-  const th::FitResult fr = th::fit_network(am.net, *ctx.fit_refit, joint_options(ctx, am, am.params, *ctx.fit_refit));
-  record_fit(ctx, am, spec, fr, r);
+  // (nuisance parameters the candidate's refit held stay held)
+  const th::FitResult fr = th::fit_network(am.net, *ctx.fit_refit, joint_options(ctx, am, am.params, *ctx.fit_refit, c.held));
+  record_fit(ctx, am, spec, fr, r, c.held);
   return r;
+}
+
+int weakest_node(const CandidateContext& ctx, const CandidateResult& c) {
+  if (c.status == "failed" || c.spec.nodes.size() < 2) return -1;
+  int weakest = -1;
+  double weakest_z = std::numeric_limits<double>::infinity();
+  for (std::size_t i = 0; i < c.spec.nodes.size(); ++i) {
+    const std::string node = ctx.base->nodes[static_cast<std::size_t>(c.spec.nodes[i])].name;
+    // rank: a parameter at its bound first (its sigma, 0 there, says nothing), then |value| / sigma;
+    // weak: below param_z, at its bound or not identifiable (what the decision rejects for)
+    double z = std::numeric_limits<double>::infinity();
+    bool weak = false;
+    for (const auto& name : c.key_params) {
+      if (!ends_with(name, "_" + node)) continue;
+      const auto p = std::find_if(c.params.begin(), c.params.end(), [&](const ParamReport& r) { return r.name == name; });
+      if (p == c.params.end()) continue;
+      const double zp = p->status == "at its bound" ? -1.0 : p->sigma > 0 ? std::abs(p->value) / p->sigma : (p->value != 0 ? 1e9 : 0.0);
+      weak = weak || zp < ctx.param_z || p->status == th::identifiability_name(th::Identifiability::NotIdentifiable);
+      z = std::min(z, zp);
+    }
+    if (weak && z < weakest_z) {
+      weakest_z = z;
+      weakest = static_cast<int>(i);
+    }
+  }
+  return weakest;
+}
+
+bool prune_weak_nodes(const CandidateContext& ctx, CandidateResult& c) {
+  bool pruned = false;
+  for (int w = weakest_node(ctx, c); w >= 0; w = weakest_node(ctx, c)) {
+    const std::string node = ctx.base->nodes[static_cast<std::size_t>(c.spec.nodes[static_cast<std::size_t>(w)])].name;
+    CandidateResult r = refit_fewer_nodes(ctx, c, static_cast<std::size_t>(w));
+    if (ctx.progress)
+      ctx.progress(fmt::format("residual: {}: {} is not supported by the data (|z| < {:.0f} or at its bound); without it: fit rms {:.4g} K, "
+                               "check {:.4g} K, key |z| {:.1f}",
+                               c.label, node, ctx.param_z, r.fit.rmse_k, r.check.rmse_k, r.key_z));
+    r.seconds = c.seconds;
+    c = std::move(r);
+    pruned = true;
+  }
+  return pruned;
 }
 
 bool polish_candidate(const CandidateContext& ctx, CandidateResult& c) {

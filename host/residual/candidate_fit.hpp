@@ -43,6 +43,15 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p);
 // The candidate without its `drop`-th node, refitted jointly from its values (status "fitted").
 CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateResult& c, std::size_t drop);
 
+// The node of a fitted multi-node candidate whose key parameter is weakest, when it is below
+// ctx.param_z sigma, at its bound or not identifiable (-1: none, or a single node).
+int weakest_node(const CandidateContext& ctx, const CandidateResult& c);
+
+// Drops such nodes one at a time (each time refitting the rest jointly from the candidate's values)
+// until every node left is supported; a right effect fitted at one node too many is then judged
+// at its own nodes instead of being rejected for the extra node's weak |z|. True when it dropped any.
+bool prune_weak_nodes(const CandidateContext& ctx, CandidateResult& c);
+
 // Refits a fitted candidate jointly on the full-rate fit recordings from its values (the refits
 // run on decimated recordings) and refreshes its evidence; true when that lowered the fit error.
 bool polish_candidate(const CandidateContext& ctx, CandidateResult& c);

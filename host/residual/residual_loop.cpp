@@ -48,9 +48,11 @@ class ResidualLoop {
     propose_candidates();
     refit_candidates();
     repolish_base();
+    prune_weak_nodes_before_deciding();
     decide();
     prune_chosen_on_check();
     polish_chosen();
+    challenge_sensor_claim();
     L_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start_).count();
     say(fmt::format("residual: verdict {} ({}) in {:.1f} s", L_.verdict, L_.label, L_.seconds));
     return std::move(L_);
@@ -387,6 +389,23 @@ class ResidualLoop {
     }
   }
 
+  // Stage 6c: a candidate that passes BIC and the check but has a node its data cannot support
+  // (|z| below param_z, at its bound, not identifiable) would be rejected for that node alone; it is
+  // refitted without such nodes first, and judged at the nodes that remain.
+  void prune_weak_nodes_before_deciding() {
+    ctx_.base_bic = base_bic_;  // the base may have been re-polished since the refits
+    ctx_.before_check = L_.before_check;
+    for (auto& c : L_.candidates) {
+      if (c.status != "fitted" || c.delta_bic < o_.bic_margin || c.check_factor < o_.check_improvement) continue;
+      if (weakest_node(ctx_, c) < 0) continue;
+      try {
+        prune_weak_nodes(ctx_, c);
+      } catch (const std::exception& e) {
+        say(std::string("residual: refit with fewer nodes failed: ") + e.what());
+      }
+    }
+  }
+
   // Stage 7a: the chosen effect names only the nodes the held-out part needs. A node whose
   // coefficient is significant on the fit part can still be the effect compensating the base
   // model's own error there; each node is dropped in turn (greedily, the least needed first) and
@@ -445,9 +464,80 @@ class ResidualLoop {
     if (!better) return;
     say(fmt::format("residual: {} refitted on the full-rate recordings: fit rms {:.4g} -> {:.4g} K, check {:.4g} K", c.label, before,
                     c.fit.rmse_k, c.check.rmse_k));
+    // The full-rate refit can leave a node of the effect unsupported that the decimated one carried
+    // (a share at its bound): drop it and polish what remains, rather than reject the effect for it.
+    try {
+      if (prune_weak_nodes(ctx_, c) && polish_candidate(ctx_, c))
+        say(fmt::format("residual: {} refitted on the full-rate recordings: fit rms {:.4g} K, check {:.4g} K", c.label, c.fit.rmse_k,
+                        c.check.rmse_k));
+    } catch (const std::exception& e) {
+      say(std::string("residual: refit with fewer nodes failed: ") + e.what());
+    }
     for (auto& x : L_.candidates)
       if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
     decide();
+  }
+
+  // Stage 7c: a probe's lag or drift and heat at a node no probe measures both show up only through
+  // the probed columns, and the base fit absorbs most of an unprobed node's heat into its own
+  // parameters (the screening then hardly sees it). So before a sensor-side effect is named, speed-
+  // driven heat at each unprobed node is refitted as a rival on the same evidence: a probe lag
+  // cannot change what the other probes read, heat at a node does, and the held-out check decides.
+  void challenge_sensor_claim() {
+    if (L_.chosen < 0 || !wanted(EffectKind::ExtraHeatInput)) return;
+    const EffectKind k = L_.candidates[static_cast<std::size_t>(L_.chosen)].spec.kind;
+    if (k != EffectKind::SensorLag && k != EffectKind::SensorDrift) return;
+    std::vector<int> unprobed;
+    for (int n = 0; n < base_.node_count(); ++n) {
+      bool probed = false;
+      for (const auto& m : base_.measurements) probed = probed || m.node == n;
+      if (!probed) unprobed.push_back(n);
+    }
+    if (unprobed.empty()) return;
+    ctx_.base_params = bp_;
+    ctx_.base_bic = base_bic_;
+    ctx_.before_check = L_.before_check;
+    bool added = false;
+    for (int n : unprobed)
+      for (double e : {1.0, 2.0}) {
+        Proposal p;
+        p.spec.kind = EffectKind::ExtraHeatInput;
+        p.spec.nodes = {n};
+        p.spec.speed_exponent = e;
+        p.coefficients = {0.0};
+        p.variant = fmt::format("(w/w0)^{:g} while running, rival of the sensor-side claim at an unprobed node", e);
+        say(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(p.spec, base_), p.variant));
+        CandidateResult c = refit_candidate(ctx_, p);
+        if (c.status == "fitted") added = true;
+        L_.candidates.push_back(std::move(c));
+      }
+    if (!added) return;
+    const int sensor = L_.chosen;
+    const std::size_t first_rival = L_.candidates.size() - 2 * unprobed.size();
+    for (auto& x : L_.candidates)
+      if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+    decide();
+    if (L_.chosen != sensor) {
+      say("residual: the unprobed node's heat explains the held-out part better than " + L_.candidates[static_cast<std::size_t>(sensor)].label);
+      polish_chosen();
+    }
+    if (L_.chosen != sensor) return;
+    // The sensor-side claim still stands only when no rival that the fit recordings support (BIC)
+    // explains the held-out part better; otherwise the two are not told apart and neither is claimed.
+    CandidateResult& lag = L_.candidates[static_cast<std::size_t>(sensor)];
+    for (std::size_t i = first_rival; i < L_.candidates.size(); ++i) {
+      const CandidateResult& r = L_.candidates[i];
+      if (r.status == "failed" || r.delta_bic < o_.bic_margin || !(r.check.rmse_k < lag.check.rmse_k)) continue;
+      for (auto& x : L_.candidates)
+        if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+      lag.status = "rejected";
+      lag.reason = fmt::format("{} explains the held-out part better (check {:.4g} K against {:.4g} K) but is not significant itself: "
+                               "a probe effect and heat at a node no probe measures are not told apart",
+                               r.label, r.check.rmse_k, lag.check.rmse_k);
+      say("residual: " + lag.label + " not claimed: " + lag.reason);
+      decide();
+      return;
+    }
   }
 
   // Stage 7: the held-out decision.

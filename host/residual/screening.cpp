@@ -437,14 +437,22 @@ Selection select_family(const Dictionary& d, const Stats& st, EffectKind kind, i
   }
   if (best.group >= 0) gain_of(st, best.regs, &best.beta);
   if (second && best.group >= 0) {
-    // the best group of another variant (another trigger or coupling, exponent, pair, column)
+    // the best group of another variant (another trigger or coupling, exponent, pair, column).
+    // For a transient, another TRIGGER first: the warm-ups (one start each) hardly tell the
+    // triggers apart, only the amplitude's scaling with the start speed differs, while every later
+    // speed step depends on it; the coupling (additive or x friction law) they do see.
     const Group& b = d.groups[static_cast<std::size_t>(best.group)];
-    for (const auto& s2 : all) {
-      const Group& g = d.groups[static_cast<std::size_t>(s2.group)];
-      const bool other = g.variant_key != b.variant_key || g.spec.hot != b.spec.hot || g.spec.cold != b.spec.cold ||
-                         g.spec.speed_exponent != b.spec.speed_exponent || g.spec.column != b.spec.column;
-      if (other && (second->group < 0 || s2.score > second->score)) *second = s2;
-    }
+    const auto pick_second = [&](bool other_trigger_only) {
+      for (const auto& s2 : all) {
+        const Group& g = d.groups[static_cast<std::size_t>(s2.group)];
+        bool other = g.variant_key != b.variant_key || g.spec.hot != b.spec.hot || g.spec.cold != b.spec.cold ||
+                     g.spec.speed_exponent != b.spec.speed_exponent || g.spec.column != b.spec.column;
+        if (other_trigger_only) other = g.spec.trigger != b.spec.trigger;
+        if (other && (second->group < 0 || s2.score > second->score)) *second = s2;
+      }
+    };
+    if (b.spec.kind == EffectKind::HeatSourceTransient) pick_second(true);
+    if (second->group < 0) pick_second(false);
     if (second->group >= 0) gain_of(st, second->regs, &second->beta);
   }
   return best;
