@@ -66,9 +66,13 @@ struct FitOptions {
   int start_iterations = 60;
   double relative_tolerance = 1e-10;  // stop when the cost decreases less than this (relative)
   // Sigma from the residuals as they are: the covariance is the sandwich H^-1 M H^-1 with M the
-  // long-run (Bartlett) covariance of the scores over each run's residual autocorrelation
-  // bandwidth. false = the classical s^2 H^-1, which assumes white residuals.
+  // long-run (Bartlett) covariance of the scores over the residual autocorrelation bandwidth.
+  // false = the classical s^2 H^-1, which assumes white residuals.
   bool correlated_residuals = true;
+  // ... with the runs' scores summed at each time since their start first (Driscoll-Kraay: a
+  // misfit that repeats in every run of one protocol is one piece of evidence, see
+  // fit_uncertainty.hpp); false = each run's long-run covariance summed (independent runs).
+  bool sum_scores_over_runs = true;
   double weak_relative_sigma = 0.05;  // 1 sigma above this fraction of |value| = weakly identified
   double unidentifiable_relative_sigma = 0.5;  // ... above this = not identifiable
   double correlation_warning = 0.99;  // |correlation| above this is reported

@@ -55,6 +55,19 @@ Eigen::MatrixXd long_run_covariance(const Eigen::MatrixXd& scores, int bandwidth
   return 0.5 * (m + m.transpose());
 }
 
+Eigen::MatrixXd scores_summed_over_runs(const std::vector<Eigen::MatrixXd>& run_scores, int shared, int per_run) {
+  Eigen::Index rows = 0;
+  for (const auto& g : run_scores) rows = std::max(rows, g.rows());
+  const int runs = static_cast<int>(run_scores.size());
+  Eigen::MatrixXd sum = Eigen::MatrixXd::Zero(rows, shared + runs * per_run);
+  for (int r = 0; r < runs; ++r) {
+    const Eigen::MatrixXd& g = run_scores[static_cast<std::size_t>(r)];
+    sum.block(0, 0, g.rows(), shared) += g.leftCols(shared);
+    if (per_run > 0) sum.block(0, shared + r * per_run, g.rows(), per_run) += g.rightCols(per_run);
+  }
+  return sum;
+}
+
 void estimate_uncertainty(const Network& net, const std::vector<bool>& held, const OutputErrorProblem& pr,
                           const LmOutcome& fin, const FitOptions& opts, FitResult& res) {
   const int np = net.param_count();
@@ -80,27 +93,45 @@ void estimate_uncertainty(const Network& net, const std::vector<bool>& held, con
   res.sigma_method = "1 sigma from the Gauss-Newton covariance scaled by the residual variance (assumes white residuals)";
   if (opts.correlated_residuals) {
     // Sandwich H^-1 M H^-1 with M the long-run covariance of the scores J^T r: residuals that
-    // stay on one side for hours carry far less information than their count says.
+    // stay on one side for hours carry far less information than their count says. Recordings of
+    // one protocol (warm-up, stop, cooling) leave the same misfit at the same time since their
+    // start, so the runs' scores are summed row by row before the Bartlett sum (Driscoll-Kraay):
+    // summing each run's long-run covariance alone would treat that repeated misfit as independent
+    // evidence and claim up to sqrt(runs) times the precision.
     OutputErrorProblem at = pr;
     OutputErrorEvaluator evaluator(at);
-    Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(nu, nu);
-    const int nf = pr.nf(), n = pr.n();
+    std::vector<Eigen::MatrixXd> scores;
+    int bandwidth = 0;
     for (std::size_t r = 0; r < pr.runs.size(); ++r) {
-      const int bw = residual_correlation_rows(res.residuals_K[r]);
-      res.correlation_rows[r] = bw;
-      const Eigen::MatrixXd m = long_run_covariance(evaluator.row_scores(r, fin.u), bw);
-      meat.topLeftCorner(nf, nf) += m.topLeftCorner(nf, nf);
-      if (pr.estimate_x0) {
-        const int off = nf + static_cast<int>(r) * n;
-        meat.block(off, off, n, n) += m.bottomRightCorner(n, n);
-        meat.block(0, off, nf, n) += m.topRightCorner(nf, n);
-        meat.block(off, 0, n, nf) += m.bottomLeftCorner(n, nf);
+      res.correlation_rows[r] = residual_correlation_rows(res.residuals_K[r]);
+      bandwidth = std::max(bandwidth, res.correlation_rows[r]);
+      scores.push_back(evaluator.row_scores(r, fin.u));
+    }
+    const int per_run = pr.estimate_x0 ? pr.n() : 0;
+    const int nf = pr.nf();
+    Eigen::MatrixXd meat = Eigen::MatrixXd::Zero(nu, nu);
+    if (opts.sum_scores_over_runs) {
+      meat = long_run_covariance(scores_summed_over_runs(scores, nf, per_run), bandwidth);
+    } else {
+      for (std::size_t r = 0; r < scores.size(); ++r) {  // each run alone, its own bandwidth
+        const Eigen::MatrixXd m = long_run_covariance(scores[r], res.correlation_rows[r]);
+        meat.topLeftCorner(nf, nf) += m.topLeftCorner(nf, nf);
+        if (per_run > 0) {
+          const int off = nf + static_cast<int>(r) * per_run;
+          meat.block(off, off, per_run, per_run) += m.bottomRightCorner(per_run, per_run);
+          meat.block(0, off, nf, per_run) += m.topRightCorner(nf, per_run);
+          meat.block(off, 0, per_run, nf) += m.bottomLeftCorner(per_run, nf);
+        }
       }
     }
     const double small_sample = dof > 0 ? static_cast<double>(fin.ev.count) / dof : 1.0;
     cov_z = h_inv * meat * h_inv * small_sample;
-    res.sigma_method = "1 sigma from the sandwich covariance H^-1 M H^-1, M the Bartlett long-run covariance of the "
-                       "scores over each recording's residual autocorrelation (fit.recordings[].residual_correlation_rows)";
+    res.sigma_method = opts.sum_scores_over_runs
+                           ? "1 sigma from the sandwich covariance H^-1 M H^-1, M the Bartlett long-run covariance of the "
+                             "scores summed over the recordings at each time since their start (Driscoll-Kraay), bandwidth "
+                             "the widest residual autocorrelation (fit.recordings[].residual_correlation_rows)"
+                           : "1 sigma from the sandwich covariance H^-1 M H^-1, M the Bartlett long-run covariance of the "
+                             "scores over each recording's residual autocorrelation (fit.recordings[].residual_correlation_rows)";
   }
   res.covariance = Eigen::MatrixXd::Zero(np, np);
   Eigen::VectorXd dpdz(pr.nf());

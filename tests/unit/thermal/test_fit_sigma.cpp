@@ -1,8 +1,9 @@
 // Honest sigma: on recordings of the simulated module (tests/data/module-warmups: btsm record at
 // 5 s, no hidden effect, so the plant's truth is the spindle4 preset) the fit's residuals are
-// strongly autocorrelated. The covariance for correlated residuals must put the truth within reach
-// of every identifiable parameter, where the white-noise covariance misses it by tens of sigma;
-// and its two building blocks must do what they say on series with known answers.
+// strongly autocorrelated and repeat from run to run. The covariance for correlated residuals
+// must put the truth within 2 sigma of every identifiable parameter, where the white-noise
+// covariance misses it by tens of sigma; and its building blocks must do what they say on series
+// with known answers. Calibration over many experiments: sigma_coverage_test.cpp.
 #include "host/thermal/fit.hpp"
 #include "host/thermal/fit_uncertainty.hpp"
 #include "test_support.hpp"
@@ -47,22 +48,26 @@ const ModuleFit& correlated_fit() {
   return f;
 }
 
-TEST(ThermalFitSigma, TruthLiesWithinTheSigmaOfCorrelatedResiduals) {
+TEST(ThermalFitSigma, TruthLiesWithinTwoSigmaForEveryIdentifiableParameter) {
+  // The demo's warm-ups: every parameter the fit calls identifiable (or weakly so) has the truth
+  // within 2 sigma. The per-run Bartlett sum this replaced put C1 at 2.41 and Rc_a1 at 2.15 sigma.
   const auto& mf = correlated_fit();
   ASSERT_TRUE(mf.fit.converged);
   const auto z = mf.identifiable_z();
   ASSERT_GE(z.size(), 18u) << "the data set no longer identifies the network";
-  int within2 = 0;
   for (const auto& [name, zi] : z) {
     std::cout << name << " |estimate - truth| = " << zi << " sigma\n";
-    EXPECT_LE(zi, 3.0) << name;
-    within2 += zi <= 2.0 ? 1 : 0;
+    EXPECT_LE(zi, 2.0) << name;
   }
-  std::cout << within2 << " of " << z.size() << " within 2 sigma; bandwidths (rows):";
+  std::cout << "bandwidths (rows):";
   for (int b : mf.fit.correlation_rows) std::cout << " " << b;
   std::cout << "\n";
-  EXPECT_GE(within2, static_cast<int>(0.85 * static_cast<double>(z.size())));
   for (int b : mf.fit.correlation_rows) EXPECT_GT(b, 50) << "module residuals are correlated over minutes";
+  // What the data cannot resolve is labelled so, not given a tiny sigma: the linear friction terms
+  // (truth 0.0043 and 0.0073 W beside 37 and 28 W of the 5/3-power terms).
+  for (const auto& e : mf.fit.estimates)
+    if (e.name == "qf3" || e.name == "qf4") EXPECT_EQ(e.status, Identifiability::NotIdentifiable) << e.name;
+  EXPECT_NE(mf.fit.sigma_method.find("Driscoll-Kraay"), std::string::npos);
 }
 
 TEST(ThermalFitSigma, WhiteNoiseSigmaMissesTheTruthOnTheSameData) {
@@ -84,7 +89,10 @@ TEST(ThermalFitSigma, WhiteNoiseSigmaMissesTheTruthOnTheSameData) {
 }
 
 TEST(ThermalFitSigma, ReferenceRecordingsWithWhiteNoiseKeepTheirSigma) {
-  // tnm-reference: 5 mK white noise, so the correlated-residual sigma must agree with the classical one.
+  // tnm-reference: 5 mK white noise, so the correlated-residual sigma must stay near the classical
+  // one. Summing the runs' scores (Driscoll-Kraay) adds their cross products, zero on average for
+  // independent runs but noisy where a parameter's information sits in a few short transients
+  // (the shaft's 60 s): measured 0.73 (rav3) .. 1.03 of the classical sigma on this set.
   const Network net = preset_network("spindle4");
   std::vector<Recording> recs;
   for (const auto& f : test::warmup_files()) recs.push_back(read_recording_csv(test::ref_dir() + "/" + f));
@@ -93,11 +101,44 @@ TEST(ThermalFitSigma, ReferenceRecordingsWithWhiteNoiseKeepTheirSigma) {
   const FitResult hac = fit_network(net, recs, o);
   o.correlated_residuals = false;
   const FitResult white = fit_network(net, recs, o);
+  const Eigen::VectorXd truth = test::true_parameters(net);
   for (std::size_t i = 0; i < hac.estimates.size(); ++i) {
-    if (hac.estimates[i].status == Identifiability::Fixed) continue;
-    EXPECT_NEAR(hac.estimates[i].sigma / white.estimates[i].sigma, 1.0, 0.15) << hac.estimates[i].name;
+    const auto& e = hac.estimates[i];
+    if (e.status == Identifiability::Fixed) continue;
+    const double ratio = e.sigma / white.estimates[i].sigma;
+    EXPECT_GT(ratio, 0.65) << e.name;
+    EXPECT_LT(ratio, 1.15) << e.name;
+    EXPECT_LE(std::abs(e.value - truth[static_cast<Eigen::Index>(i)]), 2 * e.sigma) << e.name;
   }
   for (int b : hac.correlation_rows) EXPECT_LE(b, 30);  // noise alone: a few lags by chance
+}
+
+TEST(ThermalFitSigma, RunsScoresAreSummedAtEachTimeSinceTheirStart) {
+  // Two runs with the same misfit count as one piece of evidence, not two independent ones: the
+  // summed series has twice the scores, so its long-run covariance is four times one run's, where
+  // the per-run sum gave two.
+  std::mt19937 rng(5);
+  std::normal_distribution<double> n01;
+  const int rows = 400, shared = 2, per_run = 1;
+  Eigen::MatrixXd g(rows, shared + per_run), h(rows - 100, shared + per_run);
+  for (int k = 0; k < rows; ++k)
+    for (int c = 0; c < shared + per_run; ++c) g(k, c) = n01(rng);
+  for (int k = 0; k < h.rows(); ++k)
+    for (int c = 0; c < shared + per_run; ++c) h(k, c) = n01(rng);
+  const Eigen::MatrixXd s = fitting::scores_summed_over_runs({g, g}, shared, per_run);
+  ASSERT_EQ(s.rows(), rows);
+  ASSERT_EQ(s.cols(), shared + 2 * per_run);
+  EXPECT_LT((s.leftCols(shared) - 2 * g.leftCols(shared)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((s.col(shared) - g.col(shared)).cwiseAbs().maxCoeff(), 1e-12);      // run 0's own state
+  EXPECT_LT((s.col(shared + 1) - g.col(shared)).cwiseAbs().maxCoeff(), 1e-12);  // run 1's own state
+  const Eigen::MatrixXd one = fitting::long_run_covariance(g.leftCols(shared), 10);
+  const Eigen::MatrixXd both = fitting::long_run_covariance(s.leftCols(shared), 10);
+  EXPECT_LT((both - 4 * one).cwiseAbs().maxCoeff(), 1e-9 * one.cwiseAbs().maxCoeff());
+  // A shorter run ends early: its rows add to the first rows only.
+  const Eigen::MatrixXd sh = fitting::scores_summed_over_runs({g, h}, shared, per_run);
+  EXPECT_LT((sh.topRows(h.rows()).leftCols(shared) - g.topRows(h.rows()).leftCols(shared) - h.leftCols(shared)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_LT((sh.bottomRows(100).leftCols(shared) - g.bottomRows(100).leftCols(shared)).cwiseAbs().maxCoeff(), 1e-12);
+  EXPECT_EQ(sh.bottomRows(100).col(shared + 1).cwiseAbs().maxCoeff(), 0.0);
 }
 
 TEST(ThermalFitSigma, CorrelationBandwidthFollowsTheSeries) {
