@@ -215,7 +215,11 @@ void register_heat_commands(CLI::App& app) {
   cmd->add_option("--nodes", args->nodes, "Comma-separated node names receiving unknown heat (default: the network's source nodes)");
   cmd->add_flag("--keep-model-sources", args->keep_model_sources,
                 "Keep the model's own heat sources and estimate only the heat it does not explain");
-  cmd->add_option("--out", args->out_dir, "Write heat_sources.csv, heat_alpha_scan.csv and heat_sources.png/.svg here");
+  cmd->add_option("--out", args->out_dir, "Write heat_sources.csv, heat_alpha_scan.csv and heat_sources.png/.svg here")
+      ->transform([](std::string dir) {  // "dir/" printed "dir//file"
+        while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+        return dir;
+      });
   cmd->add_flag("--json", args->json, "Print the result as JSON on stdout");
   cmd->callback([args] { run_heat(*args); });
 }

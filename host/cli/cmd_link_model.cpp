@@ -96,6 +96,9 @@ void print_valid_speed_range(const std::string& file) {
 }
 
 void run_flash_model(const FlashModelArgs& a) {
+  // The key file's name is checked before connecting (its device id is compared after).
+  if (!a.key_file.empty() && !parse_device_id(std::filesystem::path(a.key_file).stem().string()))
+    throw CommandError(kExitUsage, "--key-file must be named <device_id>.key (8 hex digits), got " + a.key_file);
   const auto blob = load_model_blob(a.file);
   const std::string why = check_model_blob(blob);
   if (!why.empty()) throw CommandError(kExitUsage, a.file + ": " + why);

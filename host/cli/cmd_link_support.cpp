@@ -1,7 +1,10 @@
 #include "cmd_link_support.hpp"
 
 #include "common/wire_messages.hpp"
+#include "host/link/ble_transport.hpp"
 #include "host/link/device_keys.hpp"
+#include "host/link/rfcomm_transport.hpp"
+#include "host/link/usb_devices.hpp"
 
 #include <fmt/core.h>
 
@@ -51,8 +54,25 @@ LinkSpec spec_from(const LinkOptions& o) {
   return s;
 }
 
+// The link options' syntax is checked before anything is opened: a malformed address is a bad
+// argument (exit 2), not a missing device (exit 3).
+void check_link_syntax(const LinkOptions& o) {
+  try {
+    if (!o.ble.empty()) (void)parse_ble_address(o.ble);
+    if (!o.rfcomm.empty()) {
+      uint8_t tmp[6];
+      parse_bdaddr_or_throw(o.rfcomm, tmp);
+    }
+  } catch (const LinkError& e) {
+    throw CommandError(kExitUsage, std::string(o.ble.empty() ? "--rfcomm: " : "--ble: ") + e.what());
+  }
+  if (!o.usb.empty() && !parse_vid_pid(o.usb))
+    throw CommandError(kExitUsage, "bad --usb '" + o.usb + "': expected VID:PID in hex, e.g. 2341:0043");
+}
+
 Connection connect(const LinkOptions& o) {
   if (!(o.timeout_s > 0)) throw CommandError(kExitUsage, "--timeout must be positive");
+  check_link_syntax(o);
   Connection c;
   c.transport = open_link(spec_from(o));
   SessionOptions so;

@@ -140,7 +140,11 @@ void register_residual_commands(CLI::App& app) {
   cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations of each start's effect-only stage (default 60)");
   cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations of each joint refit and of the base fit (default 300)");
   cmd->add_option("--trace-step", a->opts.trace_step_s, "Step of the unexplained-heat trace [s] (default max(60 s, 10 samples))");
-  cmd->add_option("--report", a->report_dir, "Write residual_result.json, residual_table.txt and plots (PNG + SVG) here");
+  cmd->add_option("--report", a->report_dir, "Write residual_result.json, residual_table.txt and plots (PNG + SVG) here")
+      ->transform([](std::string dir) {  // "dir/" printed "dir//file"
+        while (dir.size() > 1 && dir.back() == '/') dir.pop_back();
+        return dir;
+      });
   cmd->add_flag("--json", a->json, "Print the result as JSON on stdout");
   cmd->callback([a] { run_residual(*a); });
 }

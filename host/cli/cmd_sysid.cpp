@@ -297,6 +297,12 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   const Network& net = model.network;
   ReduceOptions o;
   o.speeds_rpm = number_list(a.speeds, "--speeds");
+  // Checked before anything else is printed (the reduction checks them again).
+  if (o.speeds_rpm.empty() || o.speeds_rpm.size() > kModelMaxBreakpoints - 1u)
+    throw CommandError(kExitUsage, fmt::format("--speeds: 1 to {} running breakpoints", kModelMaxBreakpoints - 1));
+  for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i)
+    if (!(o.speeds_rpm[i] > 0) || o.speeds_rpm[i] > 65534 || (i > 0 && !(o.speeds_rpm[i] > o.speeds_rpm[i - 1])))
+      throw CommandError(kExitUsage, "--speeds: '" + a.speeds + "': each in 1..65534 rpm, strictly ascending");
   const std::vector<std::string> map_lines = channel_map(net, model.json, a.channels, o);
   const std::vector<double> ends = number_list(a.stop_phases, "--stop-phases");
   if (ends.size() > kModelEarlyStopPhases) throw CommandError(kExitUsage, "--stop-phases: at most 2 phase ends");

@@ -38,6 +38,39 @@ TEST(CliExitCodes, ParserErrorsAreTwo) {
   EXPECT_EQ(run_btsm(d, "reduce --help").code, 0);
 }
 
+// A malformed link address is a bad argument (2), not a missing device (3): it is checked before
+// anything is opened; so are reduce's --speeds (before the channel map is printed) and
+// flash-model's --key-file name (before connecting).
+TEST(CliExitCodes, MalformedAddressesAndSpeedsAreTwo) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  for (const char* args : {"info --ble nonsense", "info --ble AA:BB:CC:DD:EE:FF/sideways", "info --usb zz",
+                           "info --rfcomm 12:34", "monitor --usb 2341", "record --ble x --out r.csv"}) {
+    const CliResult r = run_btsm(d, args);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.err;
+    EXPECT_NE(r.err.find("bad"), std::string::npos) << args << "\n" << r.err;
+  }
+  const CliResult sp = run_btsm(d, "reduce model.json --speeds 6000,4000 --out r.json");
+  EXPECT_EQ(sp.code, 2) << sp.err;
+  EXPECT_NE(sp.err.find("--speeds: '6000,4000': each in 1..65534 rpm, strictly ascending"), std::string::npos) << sp.err;
+  EXPECT_EQ(sp.err.find("channel map"), std::string::npos) << sp.err;
+  write_text(d.file("model.bin"), std::string(464, '\0'));
+  const CliResult kf = run_btsm(d, "flash-model --port /nonexistent/tty --key-file mykey.key model.bin");
+  EXPECT_EQ(kf.code, 2) << kf.err;
+  EXPECT_NE(kf.err.find("--key-file must be named"), std::string::npos) << kf.err;
+}
+
+// An output directory given with a trailing slash printed "heat//heat_sources.csv".
+TEST(CliPaths, TrailingSlashOfAnOutputDirectoryIsDropped) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(200));
+  const CliResult r = run_btsm(d, "heat model.json rec.csv --out heat/");
+  ASSERT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("written: heat/heat_sources.csv"), std::string::npos) << r.out;
+  EXPECT_EQ(r.out.find("//"), std::string::npos) << r.out;
+}
+
 // `--dt nan` passed the range check (every comparison with NaN is false), wrote reduced.json and
 // then failed; now every FLOAT option of every command refuses nan and inf up front.
 TEST(CliExitCodes, NonFiniteNumbersAreRefusedBeforeAnythingIsWritten) {

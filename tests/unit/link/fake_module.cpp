@@ -30,6 +30,12 @@ FakeModule::FakeModule(int fd, FakeModuleOptions opts) : opts_(opts), fd_(fd), n
     ConfigRange r{};
     if (config_key_range(k, r)) config_[k] = r.default_value;
   }
+  // It reports the period it streams at, as the firmware does (monitor's silence watch reads it),
+  // within the key's range (the fake streams faster than a module may be configured: 1 s at least).
+  ConfigRange pr{};
+  const auto period_key = static_cast<uint8_t>(wire::ConfigKey::SamplePeriodMs);
+  if (config_key_range(period_key, pr))
+    config_[period_key] = static_cast<int32_t>(std::clamp<long long>(opts.sample_period.count(), pr.min, pr.max));
 }
 
 FakeModule::~FakeModule() {

@@ -360,7 +360,10 @@ TEST(LinkCli, MonitorSaysWhenTheStreamGoesSilentAndWhenItIsBack) {
   m.module.set_streaming(false);  // silent link: no disconnect, no data
   const double said_after = mon.seconds_until("no sample for", 5);
   ASSERT_GE(said_after, 0) << mon.err();
-  EXPECT_LT(said_after, 0.5 + 0.02 + 0.5) << "one interval plus the reply timeout (and polling slack)";
+  // One configured sample period (the fake reports 1 s, the least a module may have, while it
+  // streams every 20 ms), not the host's arrival rate, plus the reply timeout (and polling slack).
+  EXPECT_LT(said_after, 1.0 + 0.5 + 0.5) << "one interval plus the reply timeout (and polling slack)";
+  EXPECT_NE(mon.err().find("(one expected every 1 s, the module's sample period)"), std::string::npos) << mon.err();
   m.module.set_streaming(true);
   EXPECT_GE(mon.seconds_until("samples again", 5), 0) << mon.err();
   const Result r = mon.finish();
