@@ -5,7 +5,8 @@
 // Over all identifiable parameters x experiments the truth must lie within 1 sigma near 68 % and
 // within 2 sigma near 95 % of the time: bounds both ways, so a sigma that claims too much (the
 // per-run Bartlett sum: 61 % / 89 % on these eight) fails, and so does one merely inflated (twice
-// the sigma puts ~95 % within 1 sigma).
+// the sigma puts ~95 % within 1 sigma). Each experiment's staged fit must also end no higher than
+// a joint fit started at the truth: a start set or stage order that leaves the truth's basin fails.
 #include "host/thermal/fit.hpp"
 #include "test_support.hpp"
 
@@ -13,6 +14,7 @@
 
 #include <unistd.h>
 
+#include <algorithm>
 #include <cstdlib>
 #include <filesystem>
 #include <iostream>
@@ -35,7 +37,7 @@ constexpr Experiment kExperiments[] = {{2, "7000,7750,6250"}, {3, "6750,5750,475
 TEST(SigmaCoverage, TruthWithinOneAndTwoSigmaNearNominalOverExperiments) {
   const fs::path dir = fs::temp_directory_path() / ("btsm-sigma-coverage-" + std::to_string(::getpid()));
   int within1 = 0, within2 = 0, count = 0;
-  double worst = 0;
+  double worst = 0, truth_basin_ratio_max = 0;
   std::string worst_name;
   for (const auto& ex : kExperiments) {
     const fs::path out = dir / ("s" + std::to_string(ex.seed));
@@ -53,6 +55,15 @@ TEST(SigmaCoverage, TruthWithinOneAndTwoSigmaNearNominalOverExperiments) {
     const FitResult fit = fit_network(net, recs, o);
     ASSERT_TRUE(fit.converged) << "seed " << ex.seed;
     const Eigen::VectorXd truth = test::true_parameters(net);
+    // The staged pipeline's starts must reach the minimum of the truth's own basin (or a lower
+    // one): a joint fit started at the truth may end no lower than the staged fit.
+    FitOptions from_truth = o;
+    from_truth.staged = false;
+    from_truth.start = truth;
+    const FitResult truth_fit = fit_network(net, recs, from_truth);
+    EXPECT_LE(fit.rms_K, truth_fit.rms_K * (1 + 1e-3))
+        << "seed " << ex.seed << ": the staged fit ended in a worse minimum than the one a fit started at the truth reaches";
+    truth_basin_ratio_max = std::max(truth_basin_ratio_max, fit.rms_K / truth_fit.rms_K);
     std::cout << "seed " << ex.seed << " (" << ex.rpms << " rpm):";
     for (int i = 0; i < net.param_count(); ++i) {
       const auto& e = fit.estimates[static_cast<std::size_t>(i)];
@@ -70,10 +81,14 @@ TEST(SigmaCoverage, TruthWithinOneAndTwoSigmaNearNominalOverExperiments) {
   ASSERT_GE(count, 8 * 18);
   const double c1 = static_cast<double>(within1) / count, c2 = static_cast<double>(within2) / count;
   std::cout << count << " parameter-experiments: within 1 sigma " << c1 << ", within 2 sigma " << c2 << ", worst " << worst
-            << " sigma, " << worst_name << "\n";
-  // Measured 0.665 / 0.938. No bound on the worst: seed 8 (7000, 5500, 3500 rpm) can end in a
-  // local minimum where qf3 takes over part of qf1 and Ra1 / rav1 follow (12 sigma away), a
-  // defect of the fit's minimum, not of sigma.
+            << " sigma, " << worst_name << "; staged / truth-started fit rms at most " << truth_basin_ratio_max << "\n";
+  // Measured 0.677 / 0.944. No bound on the worst |z|: seed 8 (7000, 5500, 3500 rpm) ends 8-12
+  // sigma from the truth (qf3 0.50 W takes over part of qf1; Ra1, rav1 follow), but that point is
+  // the data's own minimum, not a start's: the fit started at the truth ends there too (checked
+  // above for every experiment), and holding qf3 at its true value costs 15.5 % more squared
+  // residual (rms 1.109 against 1.031 mK). The recordings' systematic difference from the network
+  // (fit rms 1.0 mK against 0.34 mK white noise) carries the bias; no start can mend it, and a
+  // sigma computed from the residuals does not see it.
   EXPECT_GE(c1, 0.62);
   EXPECT_LE(c1, 0.85);
   EXPECT_GE(c2, 0.91);
