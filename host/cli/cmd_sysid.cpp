@@ -7,6 +7,7 @@
 #include "host/thermal/model_file.hpp"
 #include "host/thermal/reduce.hpp"
 #include "host/thermal/speed_coverage.hpp"
+#include "host/thermal/time_constant_text.hpp"
 #include "host/thermal/validate.hpp"
 #include "host/report/thermal_figures.hpp"
 
@@ -447,7 +448,7 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     for (std::size_t i = 1; i < cr.tau_s.size(); ++i) std::cout << fmt::format(" {:.0f}", cr.tau_s[i] / 60);
     std::cout << " at " << a.speeds << " rpm; stopped";
     for (int k = 0; k < kModelEarlyStopPhases; ++k)
-      if (r.model.stop_end_s[k] != 0) std::cout << fmt::format(" {:.1f} (until {:.0f} min)", cr.stop_tau_s[static_cast<std::size_t>(k)] / 60, r.model.stop_end_s[k] / 60.0);
+      if (r.model.stop_end_s[k] != 0) std::cout << fmt::format(" {} (until {:.0f} min)", stop_time_constant_text(cr.stop_tau_s[static_cast<std::size_t>(k)]), r.model.stop_end_s[k] / 60.0);
     std::cout << fmt::format(" {:.0f} after; max error vs the full network {:.3f} K\n", cr.tau_s[0] / 60,
                              r.deviation.quantized_vs_full_K[static_cast<std::size_t>(ch)]);
     const ChannelDetector& cd = r.model.detector[ch];

@@ -98,7 +98,7 @@ Commissioned commission_module(link::Session& session, const DemoPlan& plan, con
   if (!c.flash.verified) throw std::runtime_error("the model read back from the module differs from the one sent");
   say(fmt::format("model flashed: {} bytes in {} chunks (largest frame {} B), CRC {:08x}, read back and verified",
                   c.flash.blob_size, c.flash.chunks, c.flash.max_chunk_frame, c.flash.model_crc));
-  page.heading("4. Reduced model flashed to the module");
+  page.heading("4b. Reduced model flashed to the module");
   page.table({"blob bytes", "chunks", "largest chunk frame (B)", "model CRC-32", "model seq", "verified"},
              {{std::to_string(c.flash.blob_size), std::to_string(c.flash.chunks), std::to_string(c.flash.max_chunk_frame),
                fmt::format("{:08x}", c.flash.model_crc), std::to_string(c.flash.model_seq_after), "yes"}});

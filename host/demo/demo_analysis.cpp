@@ -9,6 +9,7 @@
 #include "host/thermal/detector_calibration.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
+#include "host/thermal/time_constant_text.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
 #include "host/thermal/reduce.hpp"
@@ -270,7 +271,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
       if (cr.node < 0) continue;
       std::string taus;
       for (std::size_t i = 1; i < cr.tau_s.size(); ++i) taus += fmt::format("{}{:.0f}", i > 1 ? " / " : "", cr.tau_s[i] / 60);
-      trow.push_back({names[j], taus, fmt::format("{:.1f} / {:.1f} / {:.0f}", cr.stop_tau_s[0] / 60, cr.stop_tau_s[1] / 60, cr.tau_s[0] / 60)});
+      trow.push_back({names[j], taus, fmt::format("{} / {} / {:.0f}", thermal::stop_time_constant_text(cr.stop_tau_s[0]), thermal::stop_time_constant_text(cr.stop_tau_s[1]), cr.tau_s[0] / 60)});
     }
     page.table({"channel", "time constant running (min, per speed)", "time constants stopped (min, per phase)"}, trow);
     std::vector<std::vector<std::string>> brow;

@@ -452,6 +452,9 @@ Network load_network(const std::string& path) {
 std::vector<std::string> preset_names() { return {"spindle4"}; }
 
 void remap_measurements(Network& net, const std::vector<std::string>& specs) {
+  // Applied as a whole (every named node's old column dropped first), so two probes can swap
+  // places: rear_bearing=T3 front_bearing=T1. The last spec for a node counts.
+  std::vector<std::pair<int, std::string>> wanted;  // node, column ("" = unmeasured)
   for (const std::string& spec : specs) {
     const auto eq = spec.find('=');
     if (eq == std::string::npos || eq == 0)
@@ -459,12 +462,19 @@ void remap_measurements(Network& net, const std::vector<std::string>& specs) {
     const std::string node = spec.substr(0, eq), column = spec.substr(eq + 1);
     const int k = net.node_index(node);
     if (k < 0) throw std::invalid_argument("--column '" + spec + "': the network has no node '" + node + "'");
-    std::erase_if(net.measurements, [&](const Measurement& m) { return m.node == k; });
+    // A later spec for the same node replaces the earlier one (the recordings' roles, then --column).
+    std::erase_if(wanted, [&](const auto& w) { return w.first == k; });
+    wanted.emplace_back(k, column);
+  }
+  for (const auto& w : wanted) std::erase_if(net.measurements, [&](const Measurement& m) { return m.node == w.first; });
+  for (std::size_t i = 0; i < wanted.size(); ++i) {
+    const auto& [k, column] = wanted[i];
     if (column.empty()) continue;
+    const std::string spec = net.nodes[static_cast<std::size_t>(k)].name + "=" + column;
     for (const auto& m : net.measurements)
       if (m.column == column)
         throw std::invalid_argument("--column '" + spec + "': column '" + column + "' already measures node '" +
-                                    net.nodes[static_cast<std::size_t>(m.node)].name + "'");
+                                    net.nodes[static_cast<std::size_t>(m.node)].name + "' (to swap two probes, name both)");
     Measurement m;
     m.column = column;
     m.node = k;

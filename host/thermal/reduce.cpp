@@ -358,8 +358,9 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     double total = 0;
     for (const auto& s : profile) total += s.second;
     out.deviation.profile_hours = total / 3600.0;
-    out.deviation.profile = "each breakpoint speed 2 h and the midpoints 1 h (ascending), stop 3 h, lowest speed 1 h, stop 1 h; ambient " +
-                            std::to_string(o.test_ambient_c) + " degC, dt " + std::to_string(dt) + " s";
+    out.deviation.profile = fmt::format("each breakpoint speed 2 h and the midpoints 1 h (ascending), stop 3 h, lowest speed 1 h, stop 1 h; "
+                                          "ambient {:g} °C, dt {:g} s",
+                                          o.test_ambient_c, dt);
     Simulator full(net, params);
     full.reset(Eigen::VectorXd::Constant(net.node_count(), o.test_ambient_c));
     ReducedModelF64State sd;

@@ -51,6 +51,18 @@ TEST(ColumnMap, BadSpecsNameWhatIsWrong) {
   EXPECT_NE(message("shaft=T1").find("already measures node 'rear_bearing'"), std::string::npos);
 }
 
+// The specs apply as a whole: two probes swapped on the machine are said with one spec each (one
+// at a time, the first collided with the other's old column).
+TEST(ColumnMap, TwoProbesSwapPlaces) {
+  th::Network net = th::preset_network("spindle4");
+  th::remap_measurements(net, {"rear_bearing=T3", "front_bearing=T1"});
+  EXPECT_EQ(column_of(net, "rear_bearing"), "T3");
+  EXPECT_EQ(column_of(net, "front_bearing"), "T1");
+  EXPECT_EQ(net.measurements.size(), 4u);
+  th::Network n2 = th::preset_network("spindle4");
+  EXPECT_THROW(th::remap_measurements(n2, {"rear_bearing=T3"}), std::invalid_argument);  // T3 still the front bearing's
+}
+
 // A recording as `btsm record` writes it: ambient channel T4 is ambient_c, not a T column.
 th::Recording module_recording(const std::string& roles, const std::string& source = "rec.csv") {
   std::string text = "# channel_roles: " + roles + "\n# ambient_channel: T4\n"
@@ -66,6 +78,18 @@ TEST(ColumnMap, ChannelRolesOfAModuleRecordingPlaceTheProbes) {
   EXPECT_EQ(column_of(net, "housing"), "T2");
   EXPECT_NE(said.find("shaft=T5"), std::string::npos) << said;
   EXPECT_NO_THROW(th::measurement_columns(net, rec));
+}
+
+// The recordings' roles say rear=T1, front=T3; the user knows the probes were swapped and says
+// both (`fit ... --column rear_bearing=T3 --column front_bearing=T1` exited 2: "column 'T3'
+// already measures node 'front_bearing'").
+TEST(ColumnMap, ColumnOverridesSwapTheRolesProbes) {
+  th::Network net = th::preset_network("spindle4");
+  const auto rec = module_recording("T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft");
+  th::map_measurements(net, {rec}, {"rear_bearing=T3", "front_bearing=T1"});
+  EXPECT_EQ(column_of(net, "rear_bearing"), "T3");
+  EXPECT_EQ(column_of(net, "front_bearing"), "T1");
+  EXPECT_EQ(column_of(net, "shaft"), "T5");
 }
 
 TEST(ColumnMap, ASpareFifthProbeLeavesTheShaftUnmeasuredAndSaysSo) {
