@@ -89,10 +89,14 @@ void run_fit(const FitArgs& a) {
     print_json(model);
   } else {
     std::cout << fmt::format("{:<8} {:>14} {:>12} {:>8}  {:<10} {}\n", "name", "value", "1 sigma", "rel %", "unit", "status");
-    for (const auto& e : fit.estimates)
+    for (const auto& e : fit.estimates) {
+      // The notes are joined with "; " each: without the last one "(correlation ...; )" reads as a cut.
+      std::string note = e.note;
+      while (!note.empty() && (note.back() == ' ' || note.back() == ';')) note.pop_back();
       std::cout << fmt::format("{:<8} {:>14.6g} {:>12.3g} {:>8.3g}  {:<10} {}{}\n", e.name, e.value, e.sigma,
                                e.value != 0 ? 100 * e.sigma / std::abs(e.value) : 0.0, e.unit, identifiability_name(e.status),
-                               e.note.empty() ? "" : "  (" + e.note + ")");
+                               note.empty() ? "" : "  (" + note + ")");
+    }
     std::cout << "gauge: " << fit.gauge << "\n";
     for (const auto& w : fit.warnings) std::cout << "warning: " << w << "\n";
   }
@@ -102,6 +106,10 @@ void run_fit(const FitArgs& a) {
 }
 
 // ------------------------------------------------------------------------------------- validate
+// The paper's A7 index, the opposite of the usual "normalised MSE" (0 = perfect): said wherever it is printed.
+constexpr const char* kNmseConvention =
+    "NMSE = 1 - sum(e^2) / sum((y - mean y)^2) (paper A7): 1 = perfect, 0 = no better than the mean, < 0 worse";
+
 struct ValidateArgs {
   std::string model;
   std::vector<std::string> recordings;
@@ -140,6 +148,20 @@ void run_validate(const ValidateArgs& a) {
   out["recordings"] = json::array();
   json nmse, rmse, maxabs;
   double worst_mape = 0;
+  // The initial state comes from the first --initial-rows rows; a recording that is no longer
+  // would be scored on the very rows its start was fitted to (NMSE ~1 on anything).
+  for (const auto& rec : recs)
+    if (rec.rows() <= a.initial_rows)
+      throw CommandError(kExitUsage, fmt::format("{}: {} rows, not more than --initial-rows {}: the initial state would be "
+                                                 "estimated from the rows it is scored on; give a longer recording or a "
+                                                 "smaller --initial-rows",
+                                                 rec.source, rec.rows(), a.initial_rows));
+  for (const auto& rec : recs)
+    if (4 * a.initial_rows > rec.rows())
+      std::cerr << fmt::format("validate: WARNING: {}: the initial state comes from {} of its {} rows: most of the score is on "
+                               "rows it was fitted to\n",
+                               rec.source, a.initial_rows, rec.rows());
+  if (!a.json_out) std::cout << kNmseConvention << "\n";
   for (const auto& rec : recs) {
     RecordingValidation v;
     try {
@@ -162,10 +184,12 @@ void run_validate(const ValidateArgs& a) {
       worst(nmse, col, v.all[m].nmse, true);
       worst(rmse, col, v.all[m].rmse_K, false);
       worst(maxabs, col, v.all[m].max_abs_K, false);
+      // A mode the recording does not contain (no cooling phase, say) has no figure: "--", not "nan".
+      auto cell = [](double x, int decimals) { return std::isfinite(x) ? fmt::format("{:.{}f}", x, decimals) : std::string("--"); };
       if (!a.json_out)
-        std::cout << fmt::format("  {:<6} {:>10.6f} {:>10.5f} {:>10.5f} | {:>10.6f} {:>10.5f} | {:>10.6f} {:>10.5f}\n", col, v.all[m].nmse,
-                                 v.all[m].rmse_K, v.all[m].max_abs_K, v.operating[m].nmse, v.operating[m].max_abs_K,
-                                 v.cooling[m].nmse, v.cooling[m].max_abs_K);
+        std::cout << fmt::format("  {:<6} {:>10} {:>10} {:>10} | {:>10} {:>10} | {:>10} {:>10}\n", col, cell(v.all[m].nmse, 6),
+                                 cell(v.all[m].rmse_K, 5), cell(v.all[m].max_abs_K, 5), cell(v.operating[m].nmse, 6),
+                                 cell(v.operating[m].max_abs_K, 5), cell(v.cooling[m].nmse, 6), cell(v.cooling[m].max_abs_K, 5));
     }
     rj["steady_states"] = json::array();
     for (const auto& sp : v.steady) {
@@ -187,6 +211,7 @@ void run_validate(const ValidateArgs& a) {
   out["max_abs_K"] = maxabs;
   out["steady_mape_max_percent"] = worst_mape;
   out["summary_note"] = "nmse/rmse_K/max_abs_K: worst value per node over the recordings";
+  out["nmse_convention"] = kNmseConvention;
   if (a.json_out) print_json(out);
 }
 
@@ -499,10 +524,11 @@ void register_sysid_commands(CLI::App& app) {
     auto a = std::make_shared<ValidateArgs>();
     auto* c = app.add_subcommand("validate", "Validate a fitted model against recordings (NMSE, RMSE, max error, steady-state MAPE)");
     c->footer(
-        "Per recording and measured node: NMSE (paper A7), RMSE and max |error|, overall and per mode (operating /\n"
+        "Per recording and measured node: NMSE (paper A7: 1 - sum e^2 / sum (y - mean)^2, 1 = perfect), RMSE and max |error|, overall and per mode (operating /\n"
         "natural cooling); steady-state MAPE (paper A6, on rises above ambient) for every operating phase longer than\n"
         "5 slowest time constants that ends in a stop (probe values missing at the stop are extrapolated back).\n"
-        "The initial state is estimated from the first --initial-rows rows only (honest external validation).");
+        "The initial state is estimated from the first --initial-rows rows only (honest external validation); a\n"
+        "recording not longer than that is refused, one shorter than 4x that warned about.");
     c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(CLI::ExistingFile);
     c->add_option("recordings", a->recordings, "Recording CSV files")->required()->check(CLI::ExistingFile);
     c->add_option("--plots", a->plots, "Directory for measured-vs-predicted and residual plots (PNG + SVG)");

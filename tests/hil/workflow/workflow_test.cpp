@@ -159,6 +159,12 @@ TEST(SwappedProbes, TheModuleDiagnosesTheRightNode) {
   const Result info = h.btsm("info --port " + o.pty_path);
   ASSERT_EQ(info.code, 0) << info.err;
   EXPECT_NE(info.out.find("model channel map:"), std::string::npos) << info.out;
+  // One project version: the tool's is the firmware's (btsm --version said 0.1.0 next to 0.2.0).
+  const Result version = h.btsm("--version");
+  ASSERT_EQ(version.code, 0);
+  const std::string v = version.out.substr(0, version.out.find_first_of("\r\n"));
+  ASSERT_EQ(v.rfind("btsm ", 0), 0u) << v;
+  EXPECT_NE(info.out.find("firmware " + v.substr(5) + " "), std::string::npos) << v << "\n" << info.out;
   EXPECT_NE(info.out.find("ch1: model front_bearing, module front_bearing"), std::string::npos) << info.out;
   EXPECT_NE(info.out.find("ch3: model rear_bearing, module rear_bearing"), std::string::npos) << info.out;
   EXPECT_EQ(info.out.find("CONFLICT"), std::string::npos) << info.out;

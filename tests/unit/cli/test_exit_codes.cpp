@@ -71,6 +71,26 @@ TEST(CliPaths, TrailingSlashOfAnOutputDirectoryIsDropped) {
   EXPECT_EQ(r.out.find("//"), std::string::npos) << r.out;
 }
 
+// validate estimates the initial state from the first --initial-rows rows; a recording no longer
+// than that scored NMSE 0.99997 on the rows its start was fitted to (exit 0). The NMSE printed is
+// the paper's A7 index (1 = perfect), the opposite of the usual meaning: the output says so.
+TEST(CliValidate, ARecordingNoLongerThanTheInitialRowsIsRefusedAndNmseIsExplained) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("tiny.csv"), recording_csv(100));
+  write_text(d.file("short.csv"), recording_csv(200));
+  const CliResult tiny = run_btsm(d, "validate model.json tiny.csv");
+  EXPECT_EQ(tiny.code, 2) << tiny.err;
+  EXPECT_NE(tiny.err.find("tiny.csv: 100 rows, not more than --initial-rows 120"), std::string::npos) << tiny.err;
+  const CliResult shorter = run_btsm(d, "validate model.json short.csv --initial-rows 20");
+  EXPECT_EQ(shorter.code, 0) << shorter.err;
+  EXPECT_NE(shorter.out.find("1 = perfect, 0 = no better than the mean"), std::string::npos) << shorter.out;
+  EXPECT_EQ(shorter.out.find("nan"), std::string::npos) << shorter.out;
+  const CliResult warned = run_btsm(d, "validate model.json short.csv");
+  EXPECT_EQ(warned.code, 0) << warned.err;
+  EXPECT_NE(warned.err.find("the initial state comes from 120 of its 200 rows"), std::string::npos) << warned.err;
+}
+
 // `--dt nan` passed the range check (every comparison with NaN is false), wrote reduced.json and
 // then failed; now every FLOAT option of every command refuses nan and inf up front.
 TEST(CliExitCodes, NonFiniteNumbersAreRefusedBeforeAnythingIsWritten) {
