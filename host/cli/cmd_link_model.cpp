@@ -47,7 +47,7 @@ void print_flash_summary(const FlashModelArgs& a, const FlashSummary& s) {
   if (a.json)
     print_json({{"device_id", device_id_text(s.device_id)}, {"bytes", s.blob_size}, {"chunks", s.chunks},
                 {"max_chunk_frame_bytes", s.max_chunk_frame}, {"offset_resyncs", s.offset_resyncs},
-                {"commit_confirmed_by_info", s.commit_confirmed_by_info},
+                {"commit_ack_lost_then_confirmed_by_info", s.commit_confirmed_by_info},
                 {"model_crc", fmt::format("{:08x}", s.model_crc)}, {"model_seq", s.model_seq_after},
                 {"verified", s.verified}});
 }

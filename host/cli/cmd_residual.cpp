@@ -90,7 +90,7 @@ void run_residual(ResidualArgs& a) {
   }
   if (!a.report_dir.empty()) {
     try {
-      rs::write_report(r, check, a.report_dir);
+      rs::write_report(r, check, a.report_dir, fit.empty() ? nullptr : &fit.front());
     } catch (const std::exception& e) {
       throw CommandError(kExitFailure, e.what());
     }

@@ -109,6 +109,7 @@ void run_sim(const SimArgs& a) {
   auto old_term = std::signal(SIGTERM, on_sigint);
   m->start();
   auto last = std::chrono::steady_clock::now();
+  double last_progress_s = -1;
   while (m->running()) {
     std::this_thread::sleep_for(std::chrono::milliseconds(100));
     if (g_interrupted) {
@@ -120,6 +121,9 @@ void run_sim(const SimArgs& a) {
     if (now - last > std::chrono::seconds(10)) {
       last = now;
       const auto s = m->stats();
+      // While it waits for a host the simulated time stands still: one line for it, not one every 10 s.
+      if (s.sim_time_s == last_progress_s) continue;
+      last_progress_s = s.sim_time_s;
       const auto t = m->truth();
       std::cerr << fmt::format("sim-module: t = {:.0f} s ({:.1f} %), {:.0f} rpm, T1 {:.3f} degC, speed-up {:.0f}x\n",
                                s.sim_time_s, 100.0 * s.sim_time_s / o.duration_s, t.speed_rpm,

@@ -104,7 +104,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   lo.progress = [&](const std::string& s) { progress(s); };  // the loop prefixes "residual:" itself
   const residual::LoopResult loop = residual::run_residual_loop(net, fit.params, fit_recs, check_recs, lo);
   fs::create_directories(dir / "residual");
-  residual::write_report(loop, check_recs, (dir / "residual").string());
+  residual::write_report(loop, check_recs, (dir / "residual").string(), fit_recs.empty() ? nullptr : &fit_recs.front());
   {
     std::ofstream j(dir / "residual" / "residual.json");
     j << residual::to_json(loop).dump(2) << "\n";

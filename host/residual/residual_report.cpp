@@ -173,7 +173,8 @@ std::string format_table(const LoopResult& r) {
   return o.str();
 }
 
-void write_report(const LoopResult& r, const std::vector<thermal::Recording>& check, const std::string& dir) {
+void write_report(const LoopResult& r, const std::vector<thermal::Recording>& check, const std::string& dir,
+                  const thermal::Recording* trace_recording) {
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw std::runtime_error("cannot create report directory " + dir + ": " + ec.message());
@@ -247,11 +248,16 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
   res_panels.push_back(rp::recording_speed_panel(rec));
   rp::save_figure(res_panels, dir + "/residual_residuals", style);
   if (!r.trace.empty()) {
-    rp::Plot p{"Unexplained heat flow per node (inverse method on the base-model residual, first fit recording)",
+    const std::string trace_name =
+        trace_recording ? std::filesystem::path(trace_recording->source).filename().string() : std::string("first fit recording");
+    rp::Plot p{"Unexplained heat flow per node (inverse method on the base-model residual, " + trace_name + ")",
                rp::kTimeAxis, rp::kHeatAxis, {}};
     for (const auto& t : r.trace) p.series.push_back(rp::trace(t.node, rp::hours(t.time_s), t.heat_w, rp::Series::Style::Step));
-    style.panel_height = 420;
-    rp::save_figure({p}, dir + "/residual_heat_trace", style);
+    std::vector<rp::Plot> trace_panels{p};
+    // Heat that follows the speed is read against it, as in every other time plot.
+    if (trace_recording) trace_panels.push_back(rp::recording_speed_panel(*trace_recording));
+    else style.panel_height = 420;
+    rp::save_figure(trace_panels, dir + "/residual_heat_trace", style);
   }
 }
 

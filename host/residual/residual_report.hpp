@@ -18,7 +18,10 @@ nlohmann::json to_json(const LoopResult& r);
 // Writes residual_result.json, residual_model.png/.svg (measured vs base vs augmented, check
 // recordings), residual_residuals.png/.svg (before/after, and the measurement distortion of a
 // sensor-side effect), residual_heat_trace.png/.svg (unexplained heat flow per node) into `dir`.
-// `check` must be the recordings the loop was checked on. Throws std::runtime_error on I/O errors.
-void write_report(const LoopResult& r, const std::vector<thermal::Recording>& check, const std::string& dir);
+// `check` must be the recordings the loop was checked on; `trace_recording`, when given, the first
+// fit recording the heat trace ran on (its name goes into the title, its speed into a panel).
+// Throws std::runtime_error on I/O errors.
+void write_report(const LoopResult& r, const std::vector<thermal::Recording>& check, const std::string& dir,
+                  const thermal::Recording* trace_recording = nullptr);
 
 }  // namespace btsm::residual
