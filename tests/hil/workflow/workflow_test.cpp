@@ -52,9 +52,12 @@ std::string dev_key_hex() {
 }
 
 // The identification procedure: warm-ups at 4000, 6000 and 8000 rpm, 3 h each, each followed by
-// 2 h of natural cooling (README: Record).
+// natural cooling; each `record` takes 5 h. The module runs a little ahead between two commands
+// (its pty buffers samples), so the plant's runs are 5 min longer than the records (README's
+// sim-module profile): every recording ends in the stop, none in the next run's start.
 const double kRunS = 5 * 3600.0;
-const char* kRuns[] = {"3h@4000,2h@0", "3h@6000,2h@0", "3h@8000,2h@0"};
+const double kPlantRunS = kRunS + 300.0;
+const char* kRuns[] = {"3h@4000,125m@0", "3h@6000,125m@0", "3h@8000,125m@0"};
 
 sim::SpeedProfile profile_with(const std::string& production) {
   std::string p;
@@ -145,7 +148,7 @@ TEST(SwappedProbes, TheModuleDiagnosesTheRightNode) {
   o.plant.probe_place = {{2, 1, 0}};  // ch1 on the front bearing, ch3 on the rear bearing
   o.plant.speed = profile_with("3h@6000");
   sim::FaultSpec fault = sim::parse_fault("bearing:rear:30W@0");
-  fault.start_s = 3 * kRunS + 3600;  // 1 h into production
+  fault.start_s = 3 * kPlantRunS + 3600;  // 1 h into production
   o.plant.faults.push_back(fault);
   sim::SimModule sim(o);
   sim.start();

@@ -51,5 +51,16 @@ TEST(ReduceSpeedRange, BreakpointsDownToLowSpeedCoverEverySpeedUpToTheTop) {
   EXPECT_TRUE(j.at("speed_coverage").at("covers_all_checked_speeds").get<bool>());
 }
 
+// Hand-set bands the model's own error reaches: the operation failed (exit 1), it was not a bad
+// argument (exit 2, as before, while the user had given none: the defaults themselves).
+TEST(ReduceSpeedRange, BandsTheModelsOwnErrorReachesFailWithOne) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  const CliResult r = run_btsm(d, "reduce model.json --speeds 500,2000,4000,6000,8000 --drift 0.01 --low-drift 0.01 --out r.json");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_NE(r.err.find("a healthy spindle would WARN"), std::string::npos) << r.err;
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+}
+
 }  // namespace
 }  // namespace btsm::test
