@@ -31,6 +31,19 @@
 //   stop_end_s[0] == 0: no early phases; stop_end_s[1] == 0: only the first one.
 //   The first-order form and the time-scheduled stop pole are what keeps each channel ONE state.
 //
+//   Carrier (optional, per channel): channel j may ride on the model of a slower channel h (its
+//   carrier, e.g. a bearing on the housing or the shaft):
+//       T_j' = T_amb + a_j (T_j - T_amb) + c_j (T_h - T_amb) + u b_j        (T_h before the step)
+//   with a constant coupling 0 <= c_j < 1 per step. Why: after a stop a bearing does not cool (or
+//   warm, when the shaft is hotter) towards the ambient but towards what the housing or shaft
+//   around it holds, and after a restart it warms back towards that in minutes; how far it has to
+//   go depends on how long and from which speed it stopped, which no pole scheduled on the time
+//   since the stop or start can know, but the carrier's state does. Still one state per channel
+//   and first order in it; the carrier has no carrier of its own (a cascade: stable whenever every
+//   pole is). The host DC-matches b_j with the carrier's steady rise: (b_j + c_j R_h)/(1 - a_j) =
+//   R_j at every breakpoint. Carrier byte 0 = none (then c_j = 0): a model without carriers is
+//   exactly the plain one.
+//
 // FIXED POINT (why):
 //   T, b     int32 Q21.10 mK (LSB 2^-10 mK ~ 1 uK, range +-2^30 LSB = +-1048 K): the ambient in
 //            mK becomes a state value by a shift, and the prediction is T rounded to mK.
@@ -75,10 +88,14 @@
 //   393    10  low_warn_evidence[5]    u16
 //   403    20  abs_limit_mK[5]         i32
 //   423    10  max_rise_mK_per_min[5]  u16
-//   433    27  reserved, zero
+//   433     5  carrier[5]     u8: 0 = none, h + 1 = channel h is channel j's carrier
+//   438    20  coupling[5]    i32 Q1.30, c_j (0 <= c_j < 1; 0 without a carrier)
+//   458     2  reserved, zero
 //   460     4  crc32 (IEEE, reflected, as btsm::crc32) over bytes 0..459 (at the same offset in
 //              version 1, so INFO's model_crc names a blob of either version)
 //   Unmodelled channels (disabled, ambient) have all-zero coefficients and detector fields.
+//   Bytes 433..457 were reserved (zero) in the first version-2 layout: such a blob is the same
+//   model without carriers.
 //
 // C++14, no standard library, header-only: shared by the firmware (avr-g++ 5.4) and the host.
 #ifndef BTSM_COMMON_MODEL_BLOB_HPP
@@ -163,12 +180,16 @@ const size_t kBlobOffAlarmEvidence = 383;
 const size_t kBlobOffLowWarnEvidence = 393;
 const size_t kBlobOffAbsLimits = 403;
 const size_t kBlobOffMaxRise = 423;
-const size_t kBlobOffReserved = 433;
+const size_t kBlobOffCarriers = 433;
+const size_t kBlobOffCouplings = 438;
+const size_t kBlobOffReserved = 458;
 const size_t kBlobOffCrc = 460;
 static_assert(kBlobOffSpeeds + 2 * kModelMaxBreakpoints == kBlobOffBreakpoints, "blob layout");
 static_assert(kBlobOffBreakpoints + kModelMaxBreakpoints * kBlobBreakpointSize == kBlobOffStopPoles, "blob layout");
 static_assert(kBlobOffStopPoles + 4 * kModelEarlyStopPhases * kModelChannels == kBlobOffRoles, "blob layout");
-static_assert(kBlobOffMaxRise + 2 * kModelChannels == kBlobOffReserved, "blob layout");
+static_assert(kBlobOffMaxRise + 2 * kModelChannels == kBlobOffCarriers, "blob layout");
+static_assert(kBlobOffCarriers + kModelChannels == kBlobOffCouplings, "blob layout");
+static_assert(kBlobOffCouplings + 4 * kModelChannels == kBlobOffReserved, "blob layout");
 static_assert(kBlobOffCrc + 4 == kReducedModelBlobSize, "blob layout");
 
 // ---- status -------------------------------------------------------------------------------------
@@ -194,6 +215,7 @@ enum class ModelStatus : uint8_t {
   kUnusedNotZero = 17,      // coefficients of an unused breakpoint, phase or channel, or reserved bytes, not zero
   kBadStopPhases = 18,      // stop_end_s[1] set without [0], or not after it
   kBadChannelMap = 19,      // role[j] does not fit the channel (ambient/modelled/not modelled)
+  kBadCarrier = 20,         // carrier not a modelled channel, itself carried, the channel itself, or coupling outside [0, 1)
 };
 
 // How a status maps onto the wire's NACK classes.
@@ -236,6 +258,8 @@ inline const char* model_status_name(ModelStatus s) {
     case ModelStatus::kBadStopPhases: return "stop phase ends must be 0, or ascending with the first one set";
     case ModelStatus::kBadChannelMap:
       return "channel map: ambient channel must have role ambient, modelled channels a thermal role, others none";
+    case ModelStatus::kBadCarrier:
+      return "carrier: must be another modelled channel without a carrier of its own, coupling in [0, 1) (0 without a carrier)";
   }
   return "unknown status";
 }
@@ -283,6 +307,13 @@ struct ChannelLimits {
   uint16_t max_rise_mK_per_min;  // rate of rise above -> ALARM; 0 = disabled
 };
 
+// Carriers and couplings of every channel (kModelNoCarrier / 0 = none).
+const uint8_t kModelNoCarrier = 0;
+struct ChannelCoupling {
+  uint8_t carrier[kModelChannels];  // 0 = none, h + 1 = channel h
+  int32_t c_q30[kModelChannels];    // Q1.30, 0 <= c < 1
+};
+
 // The schedule: everything but the coefficients (what the firmware keeps in RAM, see
 // firmware/model_store.hpp; the coefficients stay in EEPROM).
 struct ModelSchedule {
@@ -293,6 +324,7 @@ struct ModelSchedule {
   uint16_t stop_end_s[kModelEarlyStopPhases];
   uint16_t speed_rpm[kModelMaxBreakpoints];
   uint8_t role[kModelChannels];
+  ChannelCoupling coupling;
 };
 
 struct ReducedModel {
@@ -344,6 +376,21 @@ inline ModelCheck validate_schedule(const ModelSchedule& s) {
       fits = r == kModelRoleNotModelled;
     }
     if (!fits) return model_check(ModelStatus::kBadChannelMap, 0xFF, j);
+  }
+  const int32_t one_q30 = static_cast<int32_t>(1L << kPoleFracBits);
+  for (uint8_t j = 0; j < kModelChannels; ++j) {
+    const uint8_t v = s.coupling.carrier[j];
+    const int32_t c = s.coupling.c_q30[j];
+    bool fits;
+    if (v == kModelNoCarrier) {
+      fits = c == 0;
+    } else {
+      const uint8_t h = static_cast<uint8_t>(v - 1);
+      fits = h < kModelChannels && h != j && model_predicts(s.enabled_mask, s.ambient_channel, j) &&
+             model_predicts(s.enabled_mask, s.ambient_channel, h) && s.coupling.carrier[h] == kModelNoCarrier &&
+             c >= 0 && c < one_q30;
+    }
+    if (!fits) return model_check(ModelStatus::kBadCarrier, 0xFF, j);
   }
   return model_check(ModelStatus::kOk);
 }
@@ -461,6 +508,21 @@ inline void decode_schedule(const uint8_t* blob, ModelSchedule& s) {
   for (uint8_t i = 0; i < kModelMaxBreakpoints; ++i) s.speed_rpm[i] = get_le16(blob + kBlobOffSpeeds + 2 * i);
 }
 
+// The carriers and couplings (bytes kBlobOffCarriers..kBlobOffReserved of a blob) and back.
+inline void encode_coupling(const ChannelCoupling& k, uint8_t* blob) {
+  for (uint8_t j = 0; j < kModelChannels; ++j) {
+    blob[kBlobOffCarriers + j] = k.carrier[j];
+    put_le32(blob + kBlobOffCouplings + 4 * j, static_cast<uint32_t>(k.c_q30[j]));
+  }
+}
+// From those 25 bytes alone (the firmware reads just them from EEPROM).
+inline void decode_coupling_from_fields(const uint8_t* fields, ChannelCoupling& k) {
+  for (uint8_t j = 0; j < kModelChannels; ++j) {
+    k.carrier[j] = fields[j];
+    k.c_q30[j] = static_cast<int32_t>(get_le32(fields + (kBlobOffCouplings - kBlobOffCarriers) + 4 * j));
+  }
+}
+
 // Channel j's detector fields at their offsets in a blob.
 inline void encode_limits(const ChannelLimits& l, uint8_t j, uint8_t* blob) {
   put_le16(blob + kBlobOffDrift + 2 * j, l.drift_mK);
@@ -471,7 +533,7 @@ inline void encode_limits(const ChannelLimits& l, uint8_t j, uint8_t* blob) {
   put_le32(blob + kBlobOffAbsLimits + 4 * j, static_cast<uint32_t>(l.abs_limit_mK));
   put_le16(blob + kBlobOffMaxRise + 2 * j, l.max_rise_mK_per_min);
 }
-// From the detector fields alone (`fields` = the blob's bytes kBlobOffDrift..kBlobOffReserved: the
+// From the detector fields alone (`fields` = the blob's bytes kBlobOffDrift..kBlobOffCarriers: the
 // firmware reads just those from EEPROM).
 inline void decode_limits_from_fields(const uint8_t* fields, uint8_t j, ChannelLimits& l) {
   l.drift_mK = get_le16(fields + (kBlobOffDrift - kBlobOffDrift) + 2 * j);
@@ -502,6 +564,7 @@ inline void encode(const ReducedModel& m, uint8_t* out) {
     out[kBlobOffRoles + j] = m.schedule.role[j];
     encode_limits(m.limits[j], j, out);
   }
+  encode_coupling(m.schedule.coupling, out);
   put_le32(out + kBlobOffCrc, crc32(out, kBlobOffCrc));
 }
 
@@ -537,6 +600,7 @@ inline ModelCheck decode(const uint8_t* blob, size_t len, ReducedModel& out) {
     m.schedule.role[j] = blob[kBlobOffRoles + j];
     decode_limits(blob, j, m.limits[j]);
   }
+  decode_coupling_from_fields(blob + kBlobOffCarriers, m.schedule.coupling);
   const ModelCheck c = validate(m);
   if (c.ok()) out = m;
   return c;

@@ -4,7 +4,8 @@
 //
 // Bit-exact contract (tests/unit/common_numeric): step_with() equals forming a (T - T_amb)
 // exactly in int64 and rounding it once to nearest (ties away from zero), then adding T_amb and
-// b and saturating the state to +-(2^30 - 1) LSB; interpolation equals p0 + round((p1 - p0) f /
+// b (and a carrier's c (T_h - T_amb), formed and rounded the same way) and saturating the state
+// to +-(2^30 - 1) LSB; interpolation equals p0 + round((p1 - p0) f /
 // 2^16) in int64. The code below gets the same integers with 32-bit words and byte moves: on the
 // AVR every 64-bit shift is a bit-serial library loop (~130 cycles), every 32-bit shift by a count
 // that is not a multiple of 8 a bit loop too.
@@ -278,17 +279,21 @@ inline void init_at_ambient(ReducedModelState& st, int32_t ambient_mK) {
   init_from_measurement(kModelAmbientNone, 0, st, ambient_mK, none);
 }
 
-// One model step with coefficients `p` (for a running spindle when `running`): writes the
-// prediction of every channel (mK; kModelNoPrediction for unmodelled channels and for all while
-// the ambient reading is missing, the ambient channel's own reading for it), then advances every
-// modelled channel. Without an ambient reading the states hold (they are absolute temperatures:
-// nothing is known to move them). dt_ms advances the stop clock.
-inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_channel, uint8_t enabled_mask,
-                      uint16_t dt_ms, ReducedModelState& st, int32_t ambient_mK, int32_t predicted_mK[kModelChannels]) {
+// One model step with coefficients `p` and carriers `k` (for a running spindle when `running`):
+// writes the prediction of every channel (mK; kModelNoPrediction for unmodelled channels and for
+// all while the ambient reading is missing, the ambient channel's own reading for it), then
+// advances every modelled channel (a carrier term uses its carrier's state before the step).
+// Without an ambient reading the states hold (they are absolute temperatures: nothing is known
+// to move them). dt_ms advances the stop clock.
+inline void step_with(const ModelBreakpoint& p, const ChannelCoupling& k, bool running, uint8_t ambient_channel,
+                      uint8_t enabled_mask, uint16_t dt_ms, ReducedModelState& st, int32_t ambient_mK,
+                      int32_t predicted_mK[kModelChannels]) {
   using namespace detail_rm;
   const bool have_ambient = ambient_mK != kModelNoPrediction;
   // The ambient as a state value (a shift: the state's unit is 2^-10 mK).
   const int32_t amb = shl10(clamp32(ambient_mK, kModelAmbientLimitMk));
+  int32_t before[kModelChannels];  // the states before this step (carrier inputs)
+  memcpy(before, st.t, sizeof before);
   uint8_t bit = 1;
   for (uint8_t j = 0; j < kModelChannels; ++j, bit = static_cast<uint8_t>(bit << 1)) {
     if ((enabled_mask & bit) == 0 || !have_ambient) {
@@ -299,12 +304,19 @@ inline void step_with(const ModelBreakpoint& p, bool running, uint8_t ambient_ch
       predicted_mK[j] = ambient_mK;
       continue;
     }
-    const int32_t t = st.t[j];
+    const int32_t t = before[j];
     predicted_mK[j] = shr10(t + (1L << (kStateFracBits - 1)));  // nearest mK, ties up
     // T' = T_amb + round(a (T - T_amb)) + u b. With 0 <= a < 1 the first two terms lie between
     // T_amb and T (|.| <= 2^30), |b| < 2^30 by validation: no 32-bit overflow before the clamp.
     int32_t next = amb + round_q30(mul_wide(p.ch[j].a_q30, t - amb));
     if (running) next += p.ch[j].b;
+    // + round(c (T_h - T_amb)): |.| < 2^31 (0 <= c < 1), so the sum saturates instead of wrapping
+    // (the same as the exact sum clamped).
+    const uint8_t carrier = k.carrier[j];
+    if (carrier != kModelNoCarrier) {
+      const int32_t ct = round_q30(mul_wide(k.c_q30[j], before[carrier - 1] - amb));
+      if (__builtin_add_overflow(next, ct, &next)) next = ct > 0 ? kModelStateLimit : -kModelStateLimit;
+    }
     st.t[j] = clamp32(next, kModelStateLimit);
   }
   if (running) {
@@ -321,8 +333,8 @@ inline void step(const ReducedModel& m, ReducedModelState& st, uint16_t speed_rp
                  int32_t predicted_mK[kModelChannels]) {
   ModelBreakpoint p;
   const bool running = coefficients_at(m, speed_rpm, st.stopped_ms, p);
-  step_with(p, running, m.schedule.ambient_channel, m.schedule.enabled_mask, m.schedule.dt_ms, st, ambient_mK,
-            predicted_mK);
+  step_with(p, m.schedule.coupling, running, m.schedule.ambient_channel, m.schedule.enabled_mask, m.schedule.dt_ms, st,
+            ambient_mK, predicted_mK);
 }
 
 }  // namespace btsm

@@ -33,7 +33,7 @@
 
 namespace btsm {
 
-// What the firmware keeps of the active model in RAM (94 bytes instead of the 428-byte
+// What the firmware keeps of the active model in RAM (119 bytes instead of the 428-byte
 // ReducedModel): the schedule without its speeds, the channel map and the detector limits.
 // Coefficients and speeds stay in EEPROM (read on a speed change); ModelStore caches the
 // coefficients for the current speed and stop phase.
@@ -45,6 +45,7 @@ struct ModelRuntime {
   uint16_t stop_end_s[kModelEarlyStopPhases];
   uint8_t role[kModelChannels];
   ChannelLimits limits[kModelChannels];
+  ChannelCoupling coupling;  // carriers (25 bytes: read every step, so kept in RAM)
 };
 
 template <class Storage>
@@ -224,7 +225,7 @@ class ModelStore {
     // The stop phase only matters while stopped (coefficients_at ignores it when running).
     const uint8_t phase = speed_rpm > 0 ? kModelEarlyStopPhases : stop_phase(rt.stop_end_s, st.stopped_ms);
     const ModelBreakpoint& p = coefficients(rt, speed_rpm, phase);
-    step_with(p, speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, rt.dt_ms, st, ambient_mK, predicted_mK);
+    step_with(p, rt.coupling, speed_rpm > 0, rt.ambient_channel, rt.enabled_mask, rt.dt_ms, st, ambient_mK, predicted_mK);
   }
 
   // Initial state from measured temperatures (common init_from_measurement): called once after
@@ -258,6 +259,7 @@ class ModelStore {
     } scratch;
     static_assert(sizeof scratch.stop_a == kBlobOffRoles - kBlobOffStopPoles, "stop poles fit the scratch area");
     static_assert(sizeof scratch.bytes >= kBlobOffBreakpoints, "the header fits the scratch area");
+    static_assert(sizeof scratch.bytes >= kBlobOffReserved - kBlobOffCarriers, "the couplings fit the scratch area");
     uint8_t* buf = scratch.bytes;
     read_bytes(static_cast<uint16_t>(base + kBlobOffCrc), buf, 4);
     if (crc != get_le32(buf)) return model_check(ModelStatus::kBadCrc);
@@ -268,6 +270,8 @@ class ModelStore {
     ModelSchedule s;
     decode_schedule(buf, s);
     read_bytes(static_cast<uint16_t>(base + kBlobOffRoles), s.role, kModelChannels);
+    read_bytes(static_cast<uint16_t>(base + kBlobOffCarriers), buf, kBlobOffReserved - kBlobOffCarriers);
+    decode_coupling_from_fields(buf, s.coupling);
     ModelCheck c = validate_schedule(s);
     for (uint8_t i = 0; i < kModelMaxBreakpoints && c.ok(); ++i) {
       read_bytes(static_cast<uint16_t>(base + kBlobOffBreakpoints + kBlobBreakpointSize * i), buf, kBlobBreakpointSize);
@@ -301,6 +305,7 @@ class ModelStore {
     out.dt_ms = s.dt_ms;
     for (uint8_t k = 0; k < kModelEarlyStopPhases; ++k) out.stop_end_s[k] = s.stop_end_s[k];
     for (uint8_t j = 0; j < kModelChannels; ++j) out.role[j] = s.role[j];
+    out.coupling = s.coupling;
     return c;
   }
 

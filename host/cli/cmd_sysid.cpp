@@ -222,7 +222,7 @@ struct ReduceArgs {
   double dt = 5.0, cooling_ref = 0.0, design_heat_w = 10.0;
   ChannelDetector detector;
   DetectorRule rule;
-  bool force = false, json_out = false;
+  bool force = false, json_out = false, no_carriers = false;
 };
 
 std::vector<double> number_list(const std::string& text, const std::string& option) {
@@ -335,6 +335,7 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   o.stop_phase_end_s.fill(0.0);
   for (std::size_t k = 0; k < ends.size(); ++k) o.stop_phase_end_s[k] = ends[k];
   o.dt_s = a.dt;
+  o.carriers = !a.no_carriers;
   o.cooling_reference_rpm = a.cooling_ref;
   o.detector = a.detector;
   o.design_heat_w = a.design_heat_w;
@@ -476,6 +477,9 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
       if (r.model.stop_end_s[k] != 0) std::cout << fmt::format(" {} (until {:.0f} min)", stop_time_constant_text(cr.stop_tau_s[static_cast<std::size_t>(k)]), r.model.stop_end_s[k] / 60.0);
     std::cout << fmt::format(" {:.0f} after; max error vs the full network {:.3f} K\n", cr.tau_s[0] / 60,
                              r.deviation.quantized_vs_full_K[static_cast<std::size_t>(ch)]);
+    if (cr.carrier >= 0)
+      std::cout << fmt::format("    rides on ch{} (coupling {:.3g} per step, share {:.2f}): duty-cycle error {:.2f} K -> {:.2f} K\n",
+                               cr.carrier + 1, r.model.couple[ch], cr.coupling_share, cr.plain_duty_K, cr.carried_duty_K);
     const ChannelDetector& cd = r.model.detector[ch];
     std::cout << fmt::format("    detector: drift {:.2f} K, WARN {:.2f} K min, ALARM {:.2f} K min; colder: drift {:.2f} K, "
                              "WARN {:.2f} K min; limit {:.1f} degC, rise {:.2f} K/min\n",
@@ -542,6 +546,8 @@ void register_sysid_commands(CLI::App& app) {
     c->footer(
         "Per diagnosed channel, at each speed the DC-matched first-order step response closest (max norm) to the\n"
         "full network's node response, and while stopped poles scheduled on the time since the stop (--stop-phases);\n"
+        "a channel rides on a slower channel's model (carrier: a bearing relaxes towards its housing or shaft after a\n"
+        "stop and warms back after a start) where that cuts its duty-cycle error by >= 10 % (--no-carriers: none);\n"
         "the breakpoints (0 rpm + each speed) are quantized into the module's blob (format version 2). Printed: the\n"
         "network's HSV and time constants per speed, the channel map, each channel's time constants in minutes and\n"
         "its error against the full network over the reduction profile (stops and speed steps).\n"
@@ -564,6 +570,7 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("--dt", a->dt, "Module sample period in s (default 5)")->check(CLI::Range(0.1, 60.0));
     c->add_option("--channels", a->channels, "Channel map override ch1..ch5: node names, 'ambient', 'none'");
     c->add_option("--stop-phases", a->stop_phases, "Ends of the early stop phases in s (default 600,2400; '0' = one stop pole)");
+    c->add_flag("--no-carriers", a->no_carriers, "Every channel's model plain (no channel rides on a slower channel's model)");
     c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the stop poles (default: the middle breakpoint)");
     c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
         ->check(CLI::ExistingFile);

@@ -65,6 +65,8 @@ void step(const ReducedModelF64& m, ReducedModelF64State& st, double speed_rpm, 
       phase = k;
       break;
     }
+  double before[kModelChannels];
+  for (uint8_t j = 0; j < kModelChannels; ++j) before[j] = st.t_c[j];
   for (uint8_t j = 0; j < kModelChannels; ++j) {
     if (((m.enabled_mask >> j) & 1U) == 0 || !finite(ambient_c)) {
       predicted_c[j] = NAN;
@@ -78,7 +80,8 @@ void step(const ReducedModelF64& m, ReducedModelF64State& st, double speed_rpm, 
     double a = m.a[lo][j] + (m.a[hi][j] - m.a[lo][j]) * f;
     if (!running && phase < kModelEarlyStopPhases) a = m.stop_a[phase][j];
     const double b = running ? m.b_K[lo][j] + (m.b_K[hi][j] - m.b_K[lo][j]) * f : 0.0;
-    st.t_c[j] = ambient_c + a * (st.t_c[j] - ambient_c) + b;
+    const double carried = m.carrier[j] != kModelNoCarrier ? m.couple[j] * (before[m.carrier[j] - 1] - ambient_c) : 0.0;
+    st.t_c[j] = ambient_c + a * (st.t_c[j] - ambient_c) + carried + b;
   }
   st.stopped_s = running ? 0.0 : st.stopped_s + m.dt_ms * 1e-3;
 }
@@ -94,7 +97,14 @@ ModelCheck quantize(const ReducedModelF64& f, ReducedModel& out) {
   s.enabled_mask = f.enabled_mask;
   s.dt_ms = f.dt_ms;
   for (int k = 0; k < kModelEarlyStopPhases; ++k) s.stop_end_s[k] = f.stop_end_s[k];
-  for (int j = 0; j < kModelChannels; ++j) s.role[j] = f.role[j];
+  for (int j = 0; j < kModelChannels; ++j) {
+    s.role[j] = f.role[j];
+    s.coupling.carrier[j] = f.carrier[j];
+    if (f.carrier[j] == kModelNoCarrier) continue;
+    if (!finite(f.couple[j])) return model_check(ModelStatus::kNotFinite, 0xFF, static_cast<uint8_t>(j));
+    if (!(f.couple[j] >= 0.0 && f.couple[j] < 1.0) || !to_q(f.couple[j], kPoleFracBits, s.coupling.c_q30[j]))
+      return model_check(ModelStatus::kBadCarrier, 0xFF, static_cast<uint8_t>(j));
+  }
   const double state_scale = 1000.0 * (1 << kStateFracBits);  // K -> Q21.10 mK
   for (uint8_t i = 0; i < f.n_breakpoints; ++i) {
     s.speed_rpm[i] = f.speed_rpm[i];

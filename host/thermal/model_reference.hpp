@@ -30,6 +30,8 @@ struct ReducedModelF64 {
   double b_K[kModelMaxBreakpoints][kModelChannels] = {};  // K per step while running
   double stop_a[kModelEarlyStopPhases][kModelChannels] = {};  // 1, early stop-phase poles
   uint8_t role[kModelChannels] = {};            // channel map (model_blob.hpp)
+  uint8_t carrier[kModelChannels] = {};         // 0 = none, h + 1 = channel h carries channel j (model_blob.hpp)
+  double couple[kModelChannels] = {};           // 1, c_j per step on the carrier's rise (0 without a carrier)
   ChannelDetector detector[kModelChannels];
 };
 

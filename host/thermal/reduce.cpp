@@ -207,6 +207,42 @@ void requantize(ScheduledReduction& r) {
   }
 }
 
+std::vector<std::pair<double, double>> duty_segments(const ReduceOptions& o, double& top_rpm) {
+  const double top = o.duty_max_rpm > 0 ? o.duty_max_rpm : o.speeds_rpm.back();
+  // The breakpoint speeds up to the top, the midpoints between them (the module interpolates
+  // there) and the top speed itself when it is none of those.
+  std::vector<double> speeds;
+  for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
+    if (o.speeds_rpm[i] <= top + 0.5) speeds.push_back(o.speeds_rpm[i]);
+    if (i + 1 < o.speeds_rpm.size()) {
+      const double mid = 0.5 * (o.speeds_rpm[i] + o.speeds_rpm[i + 1]);
+      if (mid <= top + 0.5) speeds.push_back(mid);
+    }
+  }
+  if (speeds.empty() || std::abs(speeds.back() - top) > 0.5) speeds.push_back(top);
+  std::vector<std::pair<double, double>> prof;  // (speed, seconds)
+  for (double sp : speeds)
+    for (const auto& seg : std::vector<std::pair<double, double>>{{sp, 7200}, {0, 900}, {sp, 3600}, {0, 1800}, {sp, 3600},
+                                                                  {0, 3600}, {sp, 3600}})
+      prof.push_back(seg);
+  for (auto it = speeds.rbegin(); it != speeds.rend(); ++it) prof.emplace_back(*it, 3600.0);
+  for (double sp : speeds) prof.emplace_back(sp, 3600.0);
+  // Restarts at another speed than before the stop (the bearings' fast modes start from a
+  // state the same-speed restarts never show): each speed, stop 30 min, the mirrored speed.
+  const std::size_t ns = speeds.size();
+  for (std::size_t i = 0; i < ns; ++i) {
+    prof.emplace_back(speeds[i], 3600.0);
+    prof.emplace_back(0.0, 1800.0);
+    prof.emplace_back(speeds[ns - 1 - i], 3600.0);
+  }
+  // A night: 8 h stopped, then the top speed and the lowest, 2 h each.
+  prof.emplace_back(0.0, 8 * 3600.0);
+  prof.emplace_back(speeds.back(), 7200.0);
+  prof.emplace_back(speeds.front(), 7200.0);
+  top_rpm = top;
+  return prof;
+}
+
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& o) {
   if (o.speeds_rpm.empty()) throw std::invalid_argument("reduce: give at least one operating speed");
   if (net.has_inputs())
@@ -342,6 +378,7 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
       out.channels[c].tau_s[0] = 1.0 / p;
     }
   }
+  if (o.carriers) fit_carriers(net, params, o, fm, out.channels);
   requantize(out);
 
   // Deviation over the reduction profile: each breakpoint speed 2 h and the midpoints 1 h
@@ -400,37 +437,8 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
   }
   // The duty cycle: the module model (fixed point) against the network, as a plant would run.
   if (out.quantize_status.ok()) {
-    const double top = o.duty_max_rpm > 0 ? o.duty_max_rpm : o.speeds_rpm.back();
-    // The breakpoint speeds up to the top, the midpoints between them (the module interpolates
-    // there) and the top speed itself when it is none of those.
-    std::vector<double> speeds;
-    for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
-      if (o.speeds_rpm[i] <= top + 0.5) speeds.push_back(o.speeds_rpm[i]);
-      if (i + 1 < o.speeds_rpm.size()) {
-        const double mid = 0.5 * (o.speeds_rpm[i] + o.speeds_rpm[i + 1]);
-        if (mid <= top + 0.5) speeds.push_back(mid);
-      }
-    }
-    if (speeds.empty() || std::abs(speeds.back() - top) > 0.5) speeds.push_back(top);
-    std::vector<std::pair<double, double>> prof;  // (speed, seconds)
-    for (double sp : speeds)
-      for (const auto& seg : std::vector<std::pair<double, double>>{{sp, 7200}, {0, 900}, {sp, 3600}, {0, 1800}, {sp, 3600},
-                                                                    {0, 3600}, {sp, 3600}})
-        prof.push_back(seg);
-    for (auto it = speeds.rbegin(); it != speeds.rend(); ++it) prof.emplace_back(*it, 3600.0);
-    for (double sp : speeds) prof.emplace_back(sp, 3600.0);
-    // Restarts at another speed than before the stop (the bearings' fast modes start from a
-    // state the same-speed restarts never show): each speed, stop 30 min, the mirrored speed.
-    const std::size_t ns = speeds.size();
-    for (std::size_t i = 0; i < ns; ++i) {
-      prof.emplace_back(speeds[i], 3600.0);
-      prof.emplace_back(0.0, 1800.0);
-      prof.emplace_back(speeds[ns - 1 - i], 3600.0);
-    }
-    // A night: 8 h stopped, then the top speed and the lowest, 2 h each.
-    prof.emplace_back(0.0, 8 * 3600.0);
-    prof.emplace_back(speeds.back(), 7200.0);
-    prof.emplace_back(speeds.front(), 7200.0);
+    double top = 0;
+    const std::vector<std::pair<double, double>> prof = duty_segments(o, top);
     double total = 0;
     for (const auto& seg : prof) total += seg.second;
     out.duty.hours = total / 3600;
@@ -528,7 +536,7 @@ nlohmann::json role_json(uint8_t role) {
 
 nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r, const ReduceOptions& o) {
   nlohmann::json j;
-  j["format"] = "btsm-reduced-model-2";
+  j["format"] = "btsm-reduced-model-2";  // blob format version 2 with carriers (model_blob.hpp)
   j["inputs"] = nlohmann::json::array();
   for (const auto& s : net.sources) j["inputs"].push_back(s.name + " (W)");
   j["outputs"] = nlohmann::json::array();
@@ -542,7 +550,9 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
   sm["dt_ms"] = m.dt_ms;
   sm["reduction"] =
       "one first-order model per channel: running, the DC-matched first-order step response closest (max norm) to the "
-      "node's; stopped, the node's free response from the stop state (early phases exact at their ends, the last closest)";
+      "node's; stopped, the node's free response from the stop state (early phases exact at their ends, the last closest); "
+      "a channel rides on a slower channel's model (carrier) where that cuts its duty-cycle error by >= 10 %, its poles "
+      "then refitted with the carrier (max norm)";
   sm["ambient_channel"] = o.ambient_channel < 0 ? nlohmann::json(nullptr) : nlohmann::json(o.ambient_channel + 1);
   sm["enabled_mask"] = m.enabled_mask;
   sm["stop_phase_end_s"] = {m.stop_end_s[0], m.stop_end_s[1]};
@@ -564,6 +574,12 @@ nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r
       for (int k = 0; k < kModelEarlyStopPhases; ++k)
         if (m.stop_end_s[k] != 0) st.push_back(cr.stop_tau_s[static_cast<std::size_t>(k)] / 60.0);
       cj["stop_phase_time_constant_min"] = st;
+      if (m.carrier[ch] != kModelNoCarrier) {
+        cj["carrier_channel"] = m.carrier[ch];  // 1-based, as the channels
+        cj["coupling_per_step"] = m.couple[ch];
+        cj["coupling_share"] = cr.coupling_share;
+        cj["duty_cycle_error_K"] = {{"plain", cr.plain_duty_K}, {"with_carrier", cr.carried_duty_K}};
+      }
       const ChannelDetector& d = m.detector[ch];
       cj["detector"] = {{"drift_K", d.drift_K},
                         {"low_drift_K", d.low_drift_K},

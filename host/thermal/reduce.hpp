@@ -75,6 +75,8 @@ struct ReduceOptions {
   double test_ambient_c = 25.0;                   // degC, deviation test profile
   double duty_max_rpm = 0;                        // rpm, highest speed of the duty cycle (0 = the highest breakpoint)
   double design_heat_w = 10.0;                    // W, the extra heat the detector is designed to catch soonest
+  bool carriers = true;                           // let a channel ride on a slower channel's model where that
+                                                  // lowers its duty-cycle error by >= 10 % (reduce_carrier.cpp)
 };
 
 // A channel's first-order model in physical terms (what `reduce` prints and the JSON holds).
@@ -83,6 +85,10 @@ struct ChannelReduction {
   std::vector<double> tau_s;                      // s, per breakpoint (0 = stopped, late phase)
   std::vector<double> steady_rise_K;              // K, per breakpoint (0 when stopped)
   std::array<double, kModelEarlyStopPhases> stop_tau_s{};  // s, early stop phases
+  int carrier = -1;                               // channel (0-based) this one rides on, -1 = none
+  double coupling_share = 0;                      // 1, c_j / (1 - a_j) at the middle breakpoint of the plain model
+  double plain_duty_K = 0;                        // K, worst duty-cycle deviation without / with the carrier
+  double carried_duty_K = 0;
 };
 
 struct DeviationSummary {
@@ -129,6 +135,13 @@ struct ScheduledReduction {
   DutyCycle duty;
   FaultSignature design_fault;
 };
+
+// The duty cycle's segments (speed rpm, seconds) and its top speed (DutyCycle's profile).
+std::vector<std::pair<double, double>> duty_segments(const ReduceOptions& o, double& top_rpm);
+// Gives channels a carrier where the rule of reduce_carrier.cpp finds one (fm: the plain model,
+// its running and stop poles already fitted); records the choice in `channels`.
+void fit_carriers(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& o, ReducedModelF64& fm,
+                  std::array<ChannelReduction, 5>& channels);
 
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& opts);
 // Re-quantizes r.model (e.g. after its detector changed) into r.quantized and r.blob.

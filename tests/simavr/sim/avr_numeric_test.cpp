@@ -89,13 +89,17 @@ class AvrNumeric : public ::testing::Test {
   }
 
   // One channel's model step on the target: the new state and the prediction.
-  std::pair<int32_t, int32_t> avr_step(int32_t a, int32_t b, int32_t t, int32_t amb, bool running) {
+  // c, th: channel 0's coupling on its carrier (channel 1, whose state is th); c = 0 = no carrier.
+  std::pair<int32_t, int32_t> avr_step(int32_t a, int32_t b, int32_t t, int32_t amb, bool running, int32_t c = 0,
+                                       int32_t th = 0) {
     std::vector<uint8_t> cmd{'S'};
     put32(cmd, uint32_t(a));
     put32(cmd, uint32_t(b));
     put32(cmd, uint32_t(t));
     put32(cmd, uint32_t(amb));
     cmd.push_back(running ? 1 : 0);
+    put32(cmd, uint32_t(c));
+    put32(cmd, uint32_t(th));
     const auto r = exchange(cmd, 8);
     return r.empty() ? std::make_pair(0, 0) : std::make_pair(int32_t(get32(r.data())), int32_t(get32(r.data() + 4)));
   }
@@ -226,12 +230,13 @@ TEST_F(AvrNumeric, InterpolationMatchesTheExactRoundingOnTheTarget) {
 }
 
 // The model step on the target against the exact int64 form: T' = T_amb + round(a (T - T_amb)) +
-// u b (ties away from zero), clamped; prediction = T rounded to mK (ties up).
+// u b + round(c (T_h - T_amb)) (ties away from zero), clamped; prediction = T rounded to mK (ties up).
 TEST_F(AvrNumeric, ModelStepMatchesTheExactFormOnTheTarget) {
   std::mt19937 rng(13);
   struct Case {
     int32_t a, b, t, amb;
     bool run;
+    int32_t c = 0, th = 0;
   };
   std::vector<Case> cases = {{0, 0, 0, 0, false},
                              {(1 << 30) - 1, 0, (1 << 30) - 1, -1048575, true},
@@ -245,15 +250,24 @@ TEST_F(AvrNumeric, ModelStepMatchesTheExactFormOnTheTarget) {
     const int32_t t = int32_t(int64_t(rng() % 2147483647u) - 1073741823);
     const double bound = 1.024e9 * ((1 << 30) - a) / double(1 << 30);
     const int32_t b = int32_t((double(rng() % 2000001) / 1e6 - 1.0) * bound);
-    cases.push_back({a, b, t, amb, (rng() & 1) != 0});
+    Case k{a, b, t, amb, (rng() & 1) != 0};
+    if (i % 2) {  // with a carrier: any coupling in [0, 1), the carrier's state over the whole range
+      k.c = int32_t(rng() % (1u << 30));
+      k.th = int32_t(int64_t(rng() % 2147483647u) - 1073741823);
+    }
+    cases.push_back(k);
   }
+  cases.push_back({(1 << 30) - 1, 1024000000, (1 << 30) - 1, -1048575, true, (1 << 30) - 1, (1 << 30) - 1});  // saturates high
+  cases.push_back({(1 << 30) - 1, -1024000000, -(1 << 30) + 1, 1048575, true, (1 << 30) - 1, -(1 << 30) + 1});  // and low
+  cases.push_back({0, 0, 0, 0, false, 1 << 29, 1});  // c (T_h - T_amb) = 1/2: tie
   for (const Case& c : cases) {
     const int64_t amb = int64_t(c.amb) * 1024;
     int64_t next = amb + fx::shift_right_round(int64_t(c.a) * (c.t - amb), 30, fx::Rounding::kNearestHalfAway);
     if (c.run) next += c.b;
+    if (c.c != 0) next += fx::shift_right_round(int64_t(c.c) * (c.th - amb), 30, fx::Rounding::kNearestHalfAway);
     next = std::clamp<int64_t>(next, -kModelStateLimit, kModelStateLimit);
     const int32_t pred = int32_t(fx::shift_right_round(int64_t(c.t) + 512, 10, fx::Rounding::kFloor));
-    const auto [t_avr, pred_avr] = avr_step(c.a, c.b, c.t, c.amb, c.run);
+    const auto [t_avr, pred_avr] = avr_step(c.a, c.b, c.t, c.amb, c.run, c.c, c.th);
     ASSERT_EQ(t_avr, int32_t(next)) << c.a << " " << c.b << " " << c.t << " " << c.amb;
     ASSERT_EQ(pred_avr, pred) << c.t;
   }

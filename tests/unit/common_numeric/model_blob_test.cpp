@@ -106,6 +106,26 @@ TEST(ReducedModelBlob, RoundTripIsExact) {
   EXPECT_EQ(back.limits[1].low_warn_evidence, 188);
 }
 
+// A front bearing (ch3) riding on the housing (ch2): carrier and coupling at their offsets and back;
+// the first version-2 layout (those bytes zero) is the same model without carriers.
+TEST(ReducedModelBlob, CarriersRoundTripAndZeroMeansNone) {
+  ReducedModel m = quantized_spindle();
+  const std::vector<uint8_t> plain = blob_of(m);
+  for (size_t i = kBlobOffCarriers; i < kBlobOffCrc; ++i) EXPECT_EQ(plain[i], 0) << i;
+  m.schedule.coupling.carrier[2] = 2;
+  m.schedule.coupling.c_q30[2] = 123456;
+  ASSERT_TRUE(validate(m).ok());
+  const std::vector<uint8_t> b = blob_of(m);
+  EXPECT_EQ(b[kBlobOffCarriers + 2], 2);
+  EXPECT_EQ(static_cast<int32_t>(get_le32(&b[kBlobOffCouplings + 8])), 123456);
+  ReducedModel back;
+  ASSERT_TRUE(decode(b.data(), b.size(), back).ok());
+  EXPECT_EQ(back.schedule.coupling.carrier[2], 2);
+  EXPECT_EQ(back.schedule.coupling.c_q30[2], 123456);
+  EXPECT_EQ(back.schedule.coupling.carrier[0], kModelNoCarrier);
+  EXPECT_EQ(blob_of(back), b);
+}
+
 TEST(ReducedModelBlob, EveryByteCorruptionIsRejectedByCrc) {
   const std::vector<uint8_t> good = blob_of(quantized_spindle());
   for (size_t i = 0; i < good.size(); ++i) {
@@ -185,6 +205,15 @@ TEST(ReducedModelBlob, EveryContentRuleIsEnforcedWithLocation) {
       {"role: spare for a modelled channel", [](std::vector<uint8_t>& b) { b[kBlobOffRoles + 1] = 7; }, ModelStatus::kBadChannelMap, 0xFF, 1},
       {"role: ambient twice", [](std::vector<uint8_t>& b) { b[kBlobOffRoles + 0] = 1; }, ModelStatus::kBadChannelMap, 0xFF, 0},
       {"role: unknown code", [](std::vector<uint8_t>& b) { b[kBlobOffRoles + 2] = 9; }, ModelStatus::kBadChannelMap, 0xFF, 2},
+      // Carriers (channel 3 is the ambient here): another modelled channel, not carried itself.
+      {"coupling without a carrier", [](std::vector<uint8_t>& b) { set32(b, kBlobOffCouplings + 4, 7); }, ModelStatus::kBadCarrier, 0xFF, 1},
+      {"carried by itself", [](std::vector<uint8_t>& b) { b[kBlobOffCarriers + 2] = 3; }, ModelStatus::kBadCarrier, 0xFF, 2},
+      {"carried by the ambient", [](std::vector<uint8_t>& b) { b[kBlobOffCarriers + 0] = 4; }, ModelStatus::kBadCarrier, 0xFF, 0},
+      {"carrier beyond the channels", [](std::vector<uint8_t>& b) { b[kBlobOffCarriers + 0] = 6; }, ModelStatus::kBadCarrier, 0xFF, 0},
+      {"a chain of carriers", [](std::vector<uint8_t>& b) { b[kBlobOffCarriers + 0] = 2; b[kBlobOffCarriers + 1] = 3; }, ModelStatus::kBadCarrier, 0xFF, 0},
+      {"the ambient carried", [](std::vector<uint8_t>& b) { b[kBlobOffCarriers + 3] = 1; }, ModelStatus::kBadCarrier, 0xFF, 3},
+      {"coupling 1", [](std::vector<uint8_t>& b) { b[kBlobOffCarriers + 0] = 2; set32(b, kBlobOffCouplings, 1 << 30); }, ModelStatus::kBadCarrier, 0xFF, 0},
+      {"coupling < 0", [](std::vector<uint8_t>& b) { b[kBlobOffCarriers + 0] = 2; set32(b, kBlobOffCouplings, -1); }, ModelStatus::kBadCarrier, 0xFF, 0},
       {"a = 1", [](std::vector<uint8_t>& b) { set32(b, a_off(2, 0), 1 << 30); }, ModelStatus::kUnstablePole, 2, 0},
       {"a < 0", [](std::vector<uint8_t>& b) { set32(b, a_off(1, 4), -5); }, ModelStatus::kUnstablePole, 1, 4},
       {"b at 0 rpm", [](std::vector<uint8_t>& b) { set32(b, b_off(0, 1), 5); }, ModelStatus::kInputAtStandstill, 0, 1},

@@ -54,9 +54,11 @@ TEST(ReducedModelEval, FastPrimitivesMatchTheInt64Reference) {
   }
 }
 
-// step_with in the exact int64 form: T' = T_amb + round(a (T - T_amb)) + u b, saturated.
-void step_with_int64(const ModelBreakpoint& p, bool running, uint8_t ambient_channel, uint8_t enabled_mask,
-                     ReducedModelState& st, int32_t ambient_mK, int32_t predicted_mK[kModelChannels]) {
+// step_with in the exact int64 form: T' = T_amb + round(a (T - T_amb)) + u b + round(c (T_h -
+// T_amb)) with T_h the carrier's state before the step, saturated.
+void step_with_int64(const ModelBreakpoint& p, const ChannelCoupling& k, bool running, uint8_t ambient_channel,
+                     uint8_t enabled_mask, ReducedModelState& st, int32_t ambient_mK, int32_t predicted_mK[kModelChannels]) {
+  const ReducedModelState before = st;
   const int64_t amb = static_cast<int64_t>(std::clamp(ambient_mK, -kModelAmbientLimitMk, kModelAmbientLimitMk)) * 1024;
   for (uint8_t j = 0; j < kModelChannels; ++j) {
     if (((enabled_mask >> j) & 1U) == 0 || ambient_mK == kModelNoPrediction) {
@@ -67,12 +69,15 @@ void step_with_int64(const ModelBreakpoint& p, bool running, uint8_t ambient_cha
       predicted_mK[j] = ambient_mK;
       continue;
     }
-    const int64_t t = st.t[j];
+    const int64_t t = before.t[j];
     predicted_mK[j] = static_cast<int32_t>(fx::shift_right_round(t, kStateFracBits, fx::Rounding::kFloor) +
                                            ((t & 1023) >= 512 ? 1 : 0));
     int64_t next = amb + fx::shift_right_round(static_cast<int64_t>(p.ch[j].a_q30) * (t - amb), kPoleFracBits,
                                                fx::Rounding::kNearestHalfAway);
     if (running) next += p.ch[j].b;
+    if (k.carrier[j] != kModelNoCarrier)
+      next += fx::shift_right_round(static_cast<int64_t>(k.c_q30[j]) * (before.t[k.carrier[j] - 1] - amb), kPoleFracBits,
+                                    fx::Rounding::kNearestHalfAway);
     st.t[j] = static_cast<int32_t>(std::clamp<int64_t>(next, -kModelStateLimit, kModelStateLimit));
   }
 }
@@ -105,9 +110,18 @@ TEST(ReducedModelEval, StepWithMatchesTheInt64Form) {
     const uint8_t mask = static_cast<uint8_t>(g() % 32 | (i % 4 ? 0x1F : 0));
     int32_t ambient = (i % 11 == 0) ? kModelNoPrediction : static_cast<int32_t>(static_cast<int64_t>(static_cast<int32_t>(g())) >> 10);
     if (i % 7 == 0 && ambient != kModelNoPrediction) ambient = 0;
+    // Carriers in half the cases: any channel on any other (step_with does not validate), any
+    // coupling in [0, 1), so the carrier term meets both ends of the state range.
+    ChannelCoupling k{};
+    if (i % 2 == 0)
+      for (int j = 0; j < kModelChannels; ++j) {
+        if (g() % 3 == 0) continue;
+        k.carrier[j] = static_cast<uint8_t>((j + 1 + g() % 4) % kModelChannels + 1);
+        k.c_q30[j] = (i % 4 == 0) ? (1 << 30) - 1 - static_cast<int32_t>(g() % 1000) : static_cast<int32_t>(g() % (1u << 30));
+      }
     int32_t pa[kModelChannels], pb[kModelChannels];
-    step_with(p, running, ambient_ch, mask, 5000, a, ambient, pa);
-    step_with_int64(p, running, ambient_ch, mask, b, ambient, pb);
+    step_with(p, k, running, ambient_ch, mask, 5000, a, ambient, pa);
+    step_with_int64(p, k, running, ambient_ch, mask, b, ambient, pb);
     for (int j = 0; j < kModelChannels; ++j) {
       ASSERT_EQ(a.t[j], b.t[j]) << i << " ch " << j;
       ASSERT_EQ(pa[j], pb[j]) << i << " ch " << j;

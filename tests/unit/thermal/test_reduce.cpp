@@ -89,8 +89,12 @@ TEST(ThermalReduce, EachChannelHasItsOwnDcMatchedFirstOrderModel) {
   for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i) {
     const Eigen::VectorXd ss = steady_state_c(net, p, o.speeds_rpm[i], 0.0);
     const int node[5] = {0, 1, 2, -1, 3};
-    for (int j : {0, 1, 2, 4})
-      EXPECT_NEAR(s.model.b_K[i + 1][j] / (1 - s.model.a[i + 1][j]), ss[node[j]], 1e-9 * ss[node[j]]) << i << " " << j;
+    for (int j : {0, 1, 2, 4}) {
+      // DC match, with the carrier's steady rise where the channel rides on one.
+      const int h = s.model.carrier[j] - 1;
+      const double carried = h >= 0 ? s.model.couple[j] * ss[node[h]] : 0.0;
+      EXPECT_NEAR((s.model.b_K[i + 1][j] + carried) / (1 - s.model.a[i + 1][j]), ss[node[j]], 1e-9 * ss[node[j]]) << i << " " << j;
+    }
   }
   EXPECT_LT(s.channels[0].tau_s[2], s.channels[1].tau_s[2]) << "rear bearing faster than the housing";
   const uint8_t roles[5] = {3, 4, 2, kModelRoleAmbient, 8};
@@ -117,6 +121,7 @@ TEST(ThermalReduce, StopPhasePolesMatchTheFreeResponseAtTheirEnds) {
   const Eigen::VectorXd p = test::true_parameters(net);
   ReduceOptions o;
   o.speeds_rpm = {4000, 6000, 8000};
+  o.carriers = false;  // the plain rule (a carried channel's stop poles ride on its carrier)
   const ScheduledReduction s = build_scheduled_model(net, p, o);
   Simulator sim(net, p);
   const Eigen::VectorXd x0 = steady_state_c(net, p, 6000, 0.0);
@@ -135,6 +140,50 @@ TEST(ThermalReduce, StopPhasePolesMatchTheFreeResponseAtTheirEnds) {
         else
           EXPECT_GE(sim.node_temp_c()[j], model[j] - 1e-6) << "held while the node warms: " << j;
       }
+  }
+}
+
+// Carriers (reduce_carrier.cpp): a channel rides on another only where that cuts its duty-cycle
+// error by >= 10 %, a carrier is plain itself, the fixed point still follows the double model, and
+// no channel's error against the network over the reduction profile grows. Both the reference
+// network and one whose front bearing sits next to a shaft it cannot follow alone (its shaft
+// conductance x 3, its housing conductance / 3).
+TEST(ThermalReduce, CarriersCutTheErrorWhereTheyAreChosen) {
+  const Network net = preset_network("spindle4");
+  for (int variant = 0; variant < 2; ++variant) {
+    SCOPED_TRACE(variant);
+    Eigen::VectorXd p = test::true_parameters(net);
+    if (variant == 1)
+      for (std::size_t k = 0; k < net.params.size(); ++k) {
+        if (net.params[k].name == "R34") p[static_cast<Eigen::Index>(k)] /= 3;
+        if (net.params[k].name == "R23") p[static_cast<Eigen::Index>(k)] *= 3;
+      }
+    ReduceOptions o;
+    o.speeds_rpm = {3000, 4500, 6000, 7500, 9000};
+    o.channel_node = {{0, 1, 2, -1, 3}};
+    ReduceOptions plain_o = o;
+    plain_o.carriers = false;
+    const ScheduledReduction plain = build_scheduled_model(net, p, plain_o);
+    const ScheduledReduction s = build_scheduled_model(net, p, o);
+    ASSERT_TRUE(s.quantize_status.ok()) << model_status_name(s.quantize_status.status);
+    EXPECT_LE(s.deviation.quantized_vs_double_max_K, 0.01);
+    int carried = 0;
+    for (int j : {0, 1, 2, 4}) {
+      const auto c = static_cast<std::size_t>(j);
+      const ChannelReduction& cr = s.channels[c];
+      std::cout << "variant " << variant << " ch" << j + 1 << ": carrier " << cr.carrier + 1 << ", error " << plain.deviation.quantized_vs_full_K[c]
+                << " -> " << s.deviation.quantized_vs_full_K[c] << " K (duty " << cr.plain_duty_K << " -> " << cr.carried_duty_K << ")\n";
+      if (cr.carrier < 0) {
+        EXPECT_EQ(s.quantized.schedule.coupling.carrier[c], kModelNoCarrier);
+        continue;
+      }
+      ++carried;
+      EXPECT_EQ(s.quantized.schedule.coupling.carrier[c], cr.carrier + 1);
+      EXPECT_EQ(s.channels[static_cast<std::size_t>(cr.carrier)].carrier, -1) << "a carrier is plain";
+      EXPECT_LE(cr.carried_duty_K, 0.9 * cr.plain_duty_K);
+      EXPECT_LE(s.deviation.quantized_vs_full_K[c], plain.deviation.quantized_vs_full_K[c] + 0.05);
+    }
+    if (variant == 1) EXPECT_GE(carried, 1) << "the front bearing next to the shaft rides on something";
   }
 }
 

@@ -12,7 +12,8 @@
 //                                                      KalmanFixedSetup::configure (the firmware's
 //                                                      filter setup from its configuration)
 //   'G' p:u32                -> 'G' gain:u32 post:u32 gate:u32   gain_for(p) of the last 'K' setup
-//   'S' a:i32 b:i32 t:i32 amb:i32 run:u8 -> 'S' t':i32 pred:i32   one channel of step_with()
+//   'S' a:i32 b:i32 t:i32 amb:i32 run:u8 c:i32 th:i32 -> 'S' t':i32 pred:i32   one channel of step_with()
+//       (c != 0: channel 1, state th, is its carrier with coupling c)
 // At boot it sends 'B'. Unknown command bytes are answered with '?'.
 #include <avr/io.h>
 #include <stdint.h>
@@ -120,12 +121,18 @@ int main() {
       p.ch[0].a_q30 = static_cast<int32_t>(get_u32());
       p.ch[0].b = static_cast<int32_t>(get_u32());
       btsm::ReducedModelState st;
+      for (uint8_t j = 0; j < btsm::kModelChannels; ++j) st.t[j] = 0;
       st.t[0] = static_cast<int32_t>(get_u32());
       st.stopped_ms = 0;
       const int32_t amb = static_cast<int32_t>(get_u32());
       const bool running = get_byte() != 0;
+      btsm::ChannelCoupling k;
+      for (uint8_t j = 0; j < btsm::kModelChannels; ++j) k.carrier[j] = btsm::kModelNoCarrier, k.c_q30[j] = 0;
+      k.c_q30[0] = static_cast<int32_t>(get_u32());
+      st.t[1] = static_cast<int32_t>(get_u32());  // channel 1 carries channel 0 when c != 0
+      if (k.c_q30[0] != 0) k.carrier[0] = 2;
       int32_t pred[btsm::kModelChannels];
-      btsm::step_with(p, running, btsm::kModelAmbientNone, 0x01, 5000, st, amb, pred);
+      btsm::step_with(p, k, running, btsm::kModelAmbientNone, 0x01, 5000, st, amb, pred);
       put_byte('S');
       put_u32(static_cast<uint32_t>(st.t[0]));
       put_u32(static_cast<uint32_t>(pred[0]));
