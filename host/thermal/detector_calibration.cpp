@@ -16,7 +16,7 @@ std::string DetectorRule::describe(const FaultSignature& design) const {
   return fmt::format(
       "the module's model replayed over the recordings{}; per channel and side, for each drift d in steps of {:g} K: "
       "WARN = {:g} x worst evidence + {:g} K min, ALARM = {:g} x WARN; the drift whose ALARM (lower: WARN) {:g} W more "
-      "at the channel's node at {:.0f} rpm reaches soonest",
+      "at the channel's node at {:.0f} rpm reaches soonest, the lower drift not below the upper one",
       include_duty_cycle ? " and against the fitted network over the duty cycle" : "", drift_floor_K, margin,
       evidence_floor_K_min, alarm_factor, design.heat_w, design.speed_rpm);
 }
@@ -157,7 +157,15 @@ DetectorCalibration calibrate_detector(const ScheduledReduction& red, const std:
     cc.worst_residual_K = std::max(cc.worst_above_K, cc.worst_below_K);
     const std::vector<double>& rise = red.design_fault.rise_K[c];
     const SideChoice up = choose_drift(res[c], rise, cc.worst_above_K, true, rule, dt_ms);
-    const SideChoice down = choose_drift(res[c], rise, cc.worst_below_K, false, rule, dt_ms);
+    SideChoice down = choose_drift(res[c], rise, cc.worst_below_K, false, rule, dt_ms);
+    if (down.drift < up.drift) {
+      // The lower side is never tighter than the upper one: a probe colder than its model has no
+      // detection-time target, and the fitted network's own error where the recordings did not go
+      // (a restart beyond their top speed) shows on both sides.
+      down.drift = up.drift;
+      down.worst_K_min = worst_evidence(res[c], 1e9, up.drift, dt_ms).second;
+      down.minutes = minutes_to_evidence(rise, up.drift, rule.margin * down.worst_K_min + rule.evidence_floor_K_min, dt_ms);
+    }
     cc.worst_high_K_min = up.worst_K_min;
     cc.worst_low_K_min = down.worst_K_min;
     cc.design_alarm_min = up.minutes;

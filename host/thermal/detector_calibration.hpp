@@ -12,7 +12,8 @@
 //      ALARM(d) = alarm_factor x WARN(d). Nothing of normal running comes within `margin` of WARN.
 //   3. The upper drift is the candidate whose ALARM a design fault reaches soonest: the rise the
 //      fitted network shows at the channel's node for design_heat_w more heat there (reduce.hpp
-//      FaultSignature). The lower drift likewise for the same rise below the model and its WARN.
+//      FaultSignature). The lower drift likewise for the same rise below the model and its WARN,
+//      but never below the upper drift (a colder probe has no detection-time target).
 // The recordings must be normal running (no fault). A margin below 1, or recordings and a duty
 // cycle without a kind of transient production has, give false alarms.
 #include "model_reference.hpp"

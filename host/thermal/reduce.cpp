@@ -235,6 +235,19 @@ std::vector<std::pair<double, double>> duty_segments(const ReduceOptions& o, dou
     prof.emplace_back(0.0, 1800.0);
     prof.emplace_back(speeds[ns - 1 - i], 3600.0);
   }
+  // Restarts after a 30-minute stop from every breakpoint speed (up to the top) to every other one:
+  // a bearing riding on a slower channel (carrier) meets the carrier's fast warm-up after a start
+  // from whatever the stop left, and production restarts at any speed.
+  std::vector<double> bps;
+  for (double sp : o.speeds_rpm)
+    if (sp <= top + 0.5) bps.push_back(sp);
+  for (double from : bps)
+    for (double to : bps)
+      if (to != from) {
+        prof.emplace_back(from, 3600.0);
+        prof.emplace_back(0.0, 1800.0);
+        prof.emplace_back(to, 3600.0);
+      }
   // A night: 8 h stopped, then the top speed and the lowest, 2 h each.
   prof.emplace_back(0.0, 8 * 3600.0);
   prof.emplace_back(speeds.back(), 7200.0);
@@ -444,7 +457,8 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     out.duty.hours = total / 3600;
     out.duty.profile = fmt::format("from cold, at each breakpoint speed and midpoint up to {:.0f} rpm: 2 h, stop 15 min, 1 h, "
                                    "stop 30 min, 1 h, stop 60 min, 1 h; then 1 h steps down and up through those speeds; "
-                                   "restarts after 30 min at the mirrored speed (lowest <-> top); 8 h stopped, then top and "
+                                   "restarts after 30 min at the mirrored speed (lowest <-> top) and from every breakpoint "
+                                   "speed to every other one; 8 h stopped, then top and "
                                    "lowest speed 2 h each; ambient {:.0f} +- 1 degC (period 8 h); {:.0f} h",
                                    top, o.test_ambient_c, total / 3600);
     Simulator full(net, params);

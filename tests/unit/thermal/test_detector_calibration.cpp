@@ -71,6 +71,7 @@ TEST(DetectorCalibration, FollowsTheStatedRuleAndSeparatesNormalFromAFault) {
     EXPECT_DOUBLE_EQ(cc.detector.warn_evidence_K_min, 1.5 * hi + 0.5) << j;
     EXPECT_DOUBLE_EQ(cc.detector.alarm_evidence_K_min, 2 * cc.detector.warn_evidence_K_min) << j;
     EXPECT_DOUBLE_EQ(cc.detector.low_warn_evidence_K_min, 1.5 * lo + 0.5) << j;
+    EXPECT_GE(cc.detector.low_drift_K, cc.detector.drift_K) << j << ": the lower side is never tighter than the upper";
     // The chosen drift: no other candidate brings the design fault's ALARM sooner.
     ASSERT_GE(cc.design_alarm_min, 0) << j;
     for (double d = 0.05; d <= cc.worst_above_K + 0.05; d += 0.05) {
