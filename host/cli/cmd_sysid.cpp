@@ -383,6 +383,31 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
       throw CommandError(kExitUsage, e.what());
     }
     apply_calibration(cal, r.model);
+    // The drifts also cover the model's steady error at every speed up to the calibration's top
+    // (the speed-coverage rule below: within its share of the drift): with carriers the drifts
+    // shrink to the transients' error, and a steady interpolation error between breakpoints may
+    // be larger (evidence thresholds stay valid: a larger drift only lowers the worst evidence).
+    {
+      requantize(r);
+      SpeedCoverageOptions co;
+      co.top_rpm = o.duty_max_rpm;
+      const SpeedCoverage cover = check_speed_coverage(net, model.params, r, co);
+      for (int ch = 0; ch < 5; ++ch) {
+        const auto c = static_cast<std::size_t>(ch);
+        if (!cal.channels[c].diagnosed || cover.error_K[c].empty()) continue;
+        double above = 0, below = 0;
+        for (double e : cover.error_K[c]) above = std::max(above, e), below = std::max(below, -e);
+        ChannelDetector& dd = r.model.detector[ch];
+        const double up = std::ceil(above / cover.drift_fraction / 0.05) * 0.05, down = std::ceil(below / cover.drift_fraction / 0.05) * 0.05;
+        if (up > dd.drift_K || down > dd.low_drift_K)
+          std::cerr << fmt::format("reduce: ch{} drift raised to the steady error at every speed: {:.2f} -> {:.2f} K above, {:.2f} -> {:.2f} K below\n",
+                                   ch + 1, dd.drift_K, std::max(up, dd.drift_K), dd.low_drift_K, std::max(down, dd.low_drift_K));
+        dd.drift_K = std::max(dd.drift_K, up);
+        dd.low_drift_K = std::max(dd.low_drift_K, down);
+        cal.channels[c].detector.drift_K = dd.drift_K;
+        cal.channels[c].detector.low_drift_K = dd.low_drift_K;
+      }
+    }
     requantize(r);
     if (!r.quantize_status.ok())
       throw CommandError(kExitFailure, std::string("the calibrated detector does not fit the blob: ") + model_status_name(r.quantize_status.status));

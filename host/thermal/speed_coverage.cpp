@@ -15,13 +15,27 @@ namespace btsm::thermal {
 namespace {
 
 // The module's steady rise (K) of channel j running at speed_rpm: the fixed point of
-// T' = T_amb + a (T - T_amb) + b, i.e. b / (1 - a), with the coefficients the module interpolates.
+// T' = T_amb + a (T - T_amb) + c (T_h - T_amb) + b, i.e. (b + c R_h) / (1 - a) with R_h the
+// carrier's own steady rise (a carrier is plain; c = 0 without one), with the coefficients the
+// module interpolates.
 double module_steady_rise_K(const ReducedModel& m, int j, double speed_rpm) {
   ModelBreakpoint p;
   coefficients_at(m, static_cast<uint16_t>(std::lround(speed_rpm)), 0, p);
-  const double a = static_cast<double>(p.ch[j].a_q30) / static_cast<double>(1L << 30);
-  const double b_K = static_cast<double>(p.ch[j].b) / 1024.0 / 1000.0;
-  return a < 1.0 ? b_K / (1.0 - a) : 0.0;
+  const auto plain = [&](int k) {
+    const double a = static_cast<double>(p.ch[k].a_q30) / static_cast<double>(1L << 30);
+    const double b_K = static_cast<double>(p.ch[k].b) / 1024.0 / 1000.0;
+    return std::make_pair(a, b_K);
+  };
+  const auto [a, b_K] = plain(j);
+  if (!(a < 1.0)) return 0.0;
+  double carried = 0.0;
+  const uint8_t h = m.schedule.coupling.carrier[j];
+  if (h != kModelNoCarrier) {
+    const auto [ah, bh] = plain(h - 1);
+    const double c = static_cast<double>(m.schedule.coupling.c_q30[j]) / static_cast<double>(1L << 30);
+    carried = ah < 1.0 ? c * bh / (1.0 - ah) : 0.0;
+  }
+  return (b_K + carried) / (1.0 - a);
 }
 
 }  // namespace

@@ -130,7 +130,8 @@ TEST(Demo, NoFalseAlarmBeforeTheFaultAndAnAlarmAfterIt) {
   EXPECT_GT(alarms_after, 0u) << "no ALARM after the fault";
   EXPECT_EQ(first_alarm_channel, 1) << "the 30 W fault is at the rear bearing (ch1)";
   EXPECT_GE(first_alarm_s, 0);
-  EXPECT_LE(first_alarm_s, 10 * 60) << "30 W -> ALARM within 10 simulated minutes";
+  // Measured with the carriers: 5.2 min on both boards (8.5 / 8.7 before them); the target is 10.
+  EXPECT_LE(first_alarm_s, 8.5 * 60) << "30 W -> ALARM within 8.5 simulated minutes";
 }
 
 TEST(Demo, ModulesModelPerChannelStaysWithinItsErrorOfTheNetwork) {
@@ -138,10 +139,15 @@ TEST(Demo, ModulesModelPerChannelStaysWithinItsErrorOfTheNetwork) {
   const auto j = nlohmann::json::parse(slurp(r.out / "models/reduced_model.json"));
   ASSERT_EQ(j.at("format").get<std::string>(), "btsm-reduced-model-2");
   const auto per = j.at("deviation").at("quantized_vs_full_per_channel_K");
+  // Measured with the carriers (bearings and housing on the shaft): 0.70 / 0.74 / 0.66 K, the shaft
+  // (the carrier, plain) 1.74 K; before the carriers 1.93 / 1.20 / 2.03 / 1.74 K.
   for (int c : {0, 1, 2, 4}) {
     EXPECT_GT(per[c].get<double>(), 0.0) << c;
-    EXPECT_LE(per[c].get<double>(), 2.5) << "channel " << c + 1;  // 1.2 .. 2.0 K measured
+    EXPECT_LE(per[c].get<double>(), c == 4 ? 2.0 : 1.0) << "channel " << c + 1;
   }
+  const auto& chans = j.at("scheduled_model").at("channels");
+  for (int c : {0, 2})
+    EXPECT_TRUE(chans[static_cast<std::size_t>(c)].contains("carrier_channel")) << "bearing ch" << c + 1 << " rides on a carrier";
   EXPECT_LE(j.at("deviation").at("quantized_vs_double_max_K").get<double>(), 0.01);
   EXPECT_FALSE(j.at("detector_calibration").at("rule").get<std::string>().empty());
 }
