@@ -1,6 +1,7 @@
 // Balanced analysis in the modal basis and the module's per-channel first-order model.
 #include "reduce.hpp"
 
+#include "grid_golden_search.hpp"
 #include "simulator.hpp"
 
 #include "common/hex_text.hpp"
@@ -144,24 +145,7 @@ double minimax_pole(const NodeResponse& y, double t_start, double t_end, double 
     return e;
   };
   const double lo = std::log(0.1 * y.lambda.minCoeff()), hi = std::log(10.0 * y.lambda.maxCoeff());
-  const int grid = 120;
-  int best = 0;
-  double best_e = 1e300;
-  for (int i = 0; i <= grid; ++i) {
-    const double e = err(lo + (hi - lo) * i / grid);
-    if (e < best_e) best_e = e, best = i;
-  }
-  double a = lo + (hi - lo) * std::max(0, best - 1) / grid, b = lo + (hi - lo) * std::min(grid, best + 1) / grid;
-  const double g = (std::sqrt(5.0) - 1) / 2;
-  double c = b - g * (b - a), d = a + g * (b - a), ec = err(c), ed = err(d);
-  for (int it = 0; it < 60; ++it) {
-    if (ec < ed) {
-      b = d, d = c, ed = ec, c = b - g * (b - a), ec = err(c);
-    } else {
-      a = c, c = d, ec = ed, d = a + g * (b - a), ed = err(d);
-    }
-  }
-  return std::exp(0.5 * (a + b));
+  return std::exp(grid_golden_minimize(err, lo, hi, {.grid_cells = 120, .golden_iterations = 60}));
 }
 
 // The pole that takes y from y(t0) to y(t1) exactly (free response, y_inf = 0); positive (a

@@ -23,6 +23,7 @@
 // carries another stays plain (no chains). All in double; quantize() does the fixed point.
 #include "reduce.hpp"
 
+#include "grid_golden_search.hpp"
 #include "simulator.hpp"
 
 #include <Eigen/LU>
@@ -40,28 +41,6 @@ const int kShares = 12;
 const double kMaxShare = 4.0;
 const int kShareRefinements = 8;
 
-// Minimises err(log pole) over [lo, hi]: a coarse grid, then golden section around its best.
-template <class F>
-double minimize_log_pole(const F& err, double lo, double hi) {
-  const int grid = 40;
-  int best = 0;
-  double best_e = 1e300;
-  for (int i = 0; i <= grid; ++i) {
-    const double e = err(lo + (hi - lo) * i / grid);
-    if (e < best_e) best_e = e, best = i;
-  }
-  double a = lo + (hi - lo) * std::max(0, best - 1) / grid, b = lo + (hi - lo) * std::min(grid, best + 1) / grid;
-  const double g = (std::sqrt(5.0) - 1) / 2;
-  double c = b - g * (b - a), d = a + g * (b - a), ec = err(c), ed = err(d);
-  for (int it = 0; it < 40; ++it) {
-    if (ec < ed) {
-      b = d, d = c, ed = ec, c = b - g * (b - a), ec = err(c);
-    } else {
-      a = c, c = d, ec = ed, d = a + g * (b - a), ed = err(d);
-    }
-  }
-  return 0.5 * (a + b);
-}
 
 // The network's node rises every dt from x0 at one speed (heat on while running), `steps` steps.
 std::vector<Eigen::VectorXd> network_rises(Simulator& sim, double speed, double dt, const Eigen::VectorXd& x0, long steps) {
@@ -187,7 +166,7 @@ void fit_carriers(const Network& net, const Eigen::VectorXd& params, const Reduc
         }
         return e;
       };
-      const double p = std::exp(minimize_log_pole(err, lo, hi));
+      const double p = std::exp(grid_golden_minimize(err, lo, hi));
       m.a[i][j] = std::exp(-p * dt);
       m.b_K[i][j] = (1.0 - m.a[i][j]) * target - couple * rise_h;
       c.tau_s[static_cast<std::size_t>(i)] = 1.0 / p;
@@ -227,7 +206,7 @@ void fit_carriers(const Network& net, const Eigen::VectorXd& params, const Reduc
           double xe, xhe;
           return run(std::exp(-std::exp(log_p) * dt), xe, xhe);
         };
-        const double p = std::exp(minimize_log_pole(err, lo, hi));
+        const double p = std::exp(grid_golden_minimize(err, lo, hi));
         const double a = std::exp(-p * dt);
         run(a, x, xh);
         if (late) {
