@@ -60,7 +60,7 @@ struct FitOptions {
   // Levenberg-Marquardt iterations of the final (joint) stage: a budget, not a setting (the stage
   // stops when the cost stops falling). The demo's recordings need 119, clean module recordings
   // 17-160 over 8 seeds, but warm-ups far apart in speed more (8250/4750/7250 rpm, noise seed 10:
-  // 371, where 300 stopped the fit 0.16 % above its minimum and 60 far earlier).
+  // 274-371 from run to run; at 371, 300 stopped the fit 0.16 % above its minimum).
   int max_iterations = 1000;
   // ... of each start stage (2 and 3): they only start the final stage, and a start in a far basin
   // (stage 3's neutral start on the reference recordings) crawls for hundreds of iterations.
