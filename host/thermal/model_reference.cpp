@@ -44,27 +44,36 @@ void init_at_ambient(const ReducedModelF64& m, ReducedModelF64State& st, double 
   st.stopped_s = 1e300;
 }
 
-void step(const ReducedModelF64& m, ReducedModelF64State& st, double speed_rpm, double ambient_c,
-          double predicted_c[kModelChannels]) {
+ChannelUpdate channel_update(const ReducedModelF64& m, int j, double speed_rpm, double stopped_s) {
   const uint8_t n = m.n_breakpoints;
-  const bool running = speed_rpm > 0.0;
-  uint8_t lo = 0, hi = 0;
-  double f = 0.0;
-  if (running && n > 0) {
-    if (speed_rpm >= m.speed_rpm[n - 1]) {
-      lo = hi = static_cast<uint8_t>(n - 1);
-    } else {
-      while (lo + 1 < n && m.speed_rpm[lo + 1] <= speed_rpm) ++lo;
-      hi = static_cast<uint8_t>(lo + 1);
-      f = (speed_rpm - m.speed_rpm[lo]) / (static_cast<double>(m.speed_rpm[hi]) - m.speed_rpm[lo]);
+  ChannelUpdate u;
+  if (speed_rpm > 0.0) {
+    uint8_t lo = 0, hi = 0;
+    double f = 0.0;
+    if (n > 0) {
+      if (speed_rpm >= m.speed_rpm[n - 1]) {
+        lo = hi = static_cast<uint8_t>(n - 1);
+      } else {
+        while (lo + 1 < n && m.speed_rpm[lo + 1] <= speed_rpm) ++lo;
+        hi = static_cast<uint8_t>(lo + 1);
+        f = (speed_rpm - m.speed_rpm[lo]) / (static_cast<double>(m.speed_rpm[hi]) - m.speed_rpm[lo]);
+      }
     }
+    u.a = m.a[lo][j] + (m.a[hi][j] - m.a[lo][j]) * f;
+    u.b_K = m.b_K[lo][j] + (m.b_K[hi][j] - m.b_K[lo][j]) * f;
+    return u;
   }
-  int phase = kModelEarlyStopPhases;
+  u.a = m.a[0][j];
   for (int k = 0; k < kModelEarlyStopPhases; ++k)
-    if (m.stop_end_s[k] != 0 && st.stopped_s < m.stop_end_s[k]) {
-      phase = k;
+    if (m.stop_end_s[k] != 0 && stopped_s < m.stop_end_s[k]) {
+      u.a = m.stop_a[k][j];
       break;
     }
+  return u;
+}
+
+void step(const ReducedModelF64& m, ReducedModelF64State& st, double speed_rpm, double ambient_c,
+          double predicted_c[kModelChannels]) {
   double before[kModelChannels];
   for (uint8_t j = 0; j < kModelChannels; ++j) before[j] = st.t_c[j];
   for (uint8_t j = 0; j < kModelChannels; ++j) {
@@ -77,13 +86,11 @@ void step(const ReducedModelF64& m, ReducedModelF64State& st, double speed_rpm, 
       continue;
     }
     predicted_c[j] = st.t_c[j];
-    double a = m.a[lo][j] + (m.a[hi][j] - m.a[lo][j]) * f;
-    if (!running && phase < kModelEarlyStopPhases) a = m.stop_a[phase][j];
-    const double b = running ? m.b_K[lo][j] + (m.b_K[hi][j] - m.b_K[lo][j]) * f : 0.0;
+    const ChannelUpdate u = channel_update(m, j, speed_rpm, st.stopped_s);
     const double carried = m.carrier[j] != kModelNoCarrier ? m.couple[j] * (before[m.carrier[j] - 1] - ambient_c) : 0.0;
-    st.t_c[j] = ambient_c + a * (st.t_c[j] - ambient_c) + carried + b;
+    st.t_c[j] = ambient_c + u.a * (st.t_c[j] - ambient_c) + carried + u.b_K;
   }
-  st.stopped_s = running ? 0.0 : st.stopped_s + m.dt_ms * 1e-3;
+  st.stopped_s = speed_rpm > 0.0 ? 0.0 : st.stopped_s + m.dt_ms * 1e-3;
 }
 
 ModelCheck quantize(const ReducedModelF64& f, ReducedModel& out) {

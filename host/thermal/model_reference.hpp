@@ -45,6 +45,14 @@ struct ReducedModelF64State {
 // then the update.
 void step(const ReducedModelF64& m, ReducedModelF64State& st, double speed_rpm, double ambient_c,
           double predicted_c[kModelChannels]);
+// Channel j's update at a speed and a time since the stop, as the model defines it:
+// T' = T_amb + a (T - T_amb) + c_j (T_carrier - T_amb) + b_K, with a and b_K interpolated between
+// the breakpoints while running, and a the early stop phase's pole (else breakpoint 0's) when stopped.
+struct ChannelUpdate {
+  double a = 1.0;   // 1, the pole for this step
+  double b_K = 0.0; // K, the heat input's step (0 when stopped)
+};
+ChannelUpdate channel_update(const ReducedModelF64& m, int j, double speed_rpm, double stopped_s);
 // Every channel at the ambient (a cold machine), long stopped.
 void init_at_ambient(const ReducedModelF64& m, ReducedModelF64State& st, double ambient_c);
 

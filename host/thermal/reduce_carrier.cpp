@@ -308,41 +308,19 @@ void fit_carriers(const Network& net, const Eigen::VectorXd& params, const Reduc
 }
 
 // Channel j's worst deviation (K) from node nd of the network over the duty cycle, stepping that
-// channel alone (the model's definition, model_reference.cpp step()) with its carrier's plain
+// channel alone (channel_update: the model's definition, as step() uses it) with its carrier's plain
 // predictions as the carrier input.
 double duty_error(const ReducedModelF64& m, int j, int nd, const std::vector<double>& carrier_pred,
                   const std::vector<Eigen::VectorXd>& full, const std::vector<double>& speed,
                   const std::vector<double>& ambient, double start_c) {
-  const uint8_t n = m.n_breakpoints;
   double t = start_c, stopped_s = 1e300, e = 0;
   for (std::size_t k = 0; k < full.size(); ++k) {
     e = std::max(e, std::abs(t - full[k][nd]));
-    const double sp = speed[k], amb = ambient[k];
-    const bool running = sp > 0;
-    double a, b = 0;
-    if (running) {
-      uint8_t lo = 0, hi = 0;
-      double f = 0;
-      if (sp >= m.speed_rpm[n - 1]) {
-        lo = hi = static_cast<uint8_t>(n - 1);
-      } else {
-        while (lo + 1 < n && m.speed_rpm[lo + 1] <= sp) ++lo;
-        hi = static_cast<uint8_t>(lo + 1);
-        f = (sp - m.speed_rpm[lo]) / (static_cast<double>(m.speed_rpm[hi]) - m.speed_rpm[lo]);
-      }
-      a = m.a[lo][j] + (m.a[hi][j] - m.a[lo][j]) * f;
-      b = m.b_K[lo][j] + (m.b_K[hi][j] - m.b_K[lo][j]) * f;
-    } else {
-      a = m.a[0][j];
-      for (int q = 0; q < kModelEarlyStopPhases; ++q)
-        if (m.stop_end_s[q] != 0 && stopped_s < m.stop_end_s[q]) {
-          a = m.stop_a[q][j];
-          break;
-        }
-    }
+    const double amb = ambient[k];
+    const ChannelUpdate u = channel_update(m, j, speed[k], stopped_s);
     const double carried = m.carrier[j] != kModelNoCarrier ? m.couple[j] * (carrier_pred[k] - amb) : 0.0;
-    t = amb + a * (t - amb) + carried + b;
-    stopped_s = running ? 0.0 : stopped_s + m.dt_ms * 1e-3;
+    t = amb + u.a * (t - amb) + carried + u.b_K;
+    stopped_s = speed[k] > 0 ? 0.0 : stopped_s + m.dt_ms * 1e-3;
   }
   return e;
 }
