@@ -445,8 +445,7 @@ class ResidualLoop {
       changed = true;
     }
     if (!changed) return;
-    for (auto& x : L_.candidates)
-      if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+    reopen_verdicts();
     decide();
   }
 
@@ -477,8 +476,7 @@ class ResidualLoop {
     } catch (const std::exception& e) {
       say(std::string("residual: refit with fewer nodes failed: ") + e.what());
     }
-    for (auto& x : L_.candidates)
-      if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+    reopen_verdicts();
     decide();
   }
 
@@ -518,8 +516,7 @@ class ResidualLoop {
     if (!added) return;
     const int sensor = L_.chosen;
     const std::size_t first_rival = L_.candidates.size() - 2 * unprobed.size();
-    for (auto& x : L_.candidates)
-      if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+    reopen_verdicts();
     decide();
     if (L_.chosen != sensor) {
       say("residual: the unprobed node's heat explains the held-out part better than " + L_.candidates[static_cast<std::size_t>(sensor)].label);
@@ -532,8 +529,7 @@ class ResidualLoop {
     for (std::size_t i = first_rival; i < L_.candidates.size(); ++i) {
       const CandidateResult& r = L_.candidates[i];
       if (r.status == "failed" || r.delta_bic < o_.bic_margin || !(r.check.rmse_k < lag.check.rmse_k)) continue;
-      for (auto& x : L_.candidates)
-        if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
+      reopen_verdicts();
       lag.status = "rejected";
       lag.reason = fmt::format("{} explains the held-out part better (check {:.4g} K against {:.4g} K) but is not significant itself: "
                                "a probe effect and heat at a node no probe measures are not told apart",
@@ -542,6 +538,13 @@ class ResidualLoop {
       decide();
       return;
     }
+  }
+
+  // Candidates judged before are judged again by the next decide(): their verdicts go back to
+  // "fitted" (refused, failed and unfitted ones keep their status and reason).
+  void reopen_verdicts() {
+    for (auto& x : L_.candidates)
+      if (x.status == "effect" || x.status == "partial" || x.status == "rejected") x.status = "fitted";
   }
 
   // Stage 7: the held-out decision.
