@@ -35,13 +35,39 @@ bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
+// |value| / sigma of one key of an effect (AugmentedModel::key_params): a parameter, or the ratio
+// "a/b" of two with its sigma from their covariance (first order). A key without sigma (held) counts
+// as significant when it is nonzero.
+double key_z_of(const th::Network& net, const th::FitResult& fr, const std::string& key) {
+  const auto zs = [](double value, double sigma) { return sigma > 0 ? std::abs(value) / sigma : (value != 0 ? 1e9 : 0.0); };
+  const auto slash = key.find('/');
+  if (slash == std::string::npos) {
+    const auto& est = fr.estimates[static_cast<std::size_t>(net.param_index(key))];
+    return zs(est.value, est.sigma);
+  }
+  const int a = net.param_index(key.substr(0, slash)), b = net.param_index(key.substr(slash + 1));
+  const double va = fr.params[a], vb = fr.params[b];
+  if (!(va != 0 && vb != 0)) return 0.0;
+  const auto cov = [&](int i, int j) { return i < fr.covariance.rows() && j < fr.covariance.cols() ? fr.covariance(i, j) : 0.0; };
+  const double rel2 = cov(a, a) / (va * va) + cov(b, b) / (vb * vb) - 2 * cov(a, b) / (va * vb);
+  const double ratio = va / vb;
+  return zs(ratio, std::abs(ratio) * std::sqrt(std::max(rel2, 0.0)));
+}
+
+// True when `name` is a key of the effect or the numerator of a ratio key (the parameter that
+// carries it: a nuisance hold may fix the denominator, never that).
+bool is_key(const AugmentedModel& am, const std::string& name) {
+  for (const auto& k : am.key_params)
+    if (k == name || k.rfind(name + "/", 0) == 0) return true;
+  return false;
+}
+
 // The smallest |value| / sigma of the key parameters of one node of an effect (named "..._<node>").
 double node_z(const AugmentedModel& am, const th::FitResult& fr, const std::string& node) {
   double z = std::numeric_limits<double>::infinity();
   for (const auto& name : am.key_params) {
     if (!ends_with(name, "_" + node)) continue;
-    const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
-    z = std::min(z, est.sigma > 0 ? std::abs(est.value) / est.sigma : (est.value != 0 ? 1e9 : 0.0));
+    z = std::min(z, key_z_of(am.net, fr, name));
   }
   return z;
 }
@@ -79,11 +105,7 @@ void fill_evidence(const CandidateContext& ctx, const AugmentedModel& am, const 
   cr.delta_bic = ctx.base_bic - cr.bic;
   cr.check_factor = cr.check.rmse_k > 0 ? ctx.before_check.rmse_k / cr.check.rmse_k : 0;
   cr.key_z = std::numeric_limits<double>::infinity();
-  for (const auto& name : am.key_params) {
-    const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
-    const double z = est.sigma > 0 ? std::abs(est.value) / est.sigma : (est.value != 0 ? 1e9 : 0.0);
-    cr.key_z = std::min(cr.key_z, z);
-  }
+  for (const auto& name : am.key_params) cr.key_z = std::min(cr.key_z, key_z_of(am.net, fr, name));
   if (!std::isfinite(cr.key_z)) cr.key_z = 0;
   cr.identifiable = true;
   cr.params.clear();
@@ -371,7 +393,7 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     // value and the rest refitted, so the key parameter's sigma is not that unseen direction's.
     if (ctx.fit_base) {
       for (const auto& name : am.effect_params) {
-        if (std::find(am.key_params.begin(), am.key_params.end(), name) != am.key_params.end()) continue;
+        if (is_key(am, name)) continue;
         const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
         if (est.status == th::Identifiability::NotIdentifiable || est.at_bound) nuisance.push_back(name);
       }

@@ -335,7 +335,11 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
             }
       add_link(m, "g_ambient_lag", v, th::kAmbient, {term(pg, th::TermKind::Conductance)}, {term(pg, th::TermKind::Conductance)});
       m.net.sum_capacitance_J_per_K = std::numeric_limits<double>::quiet_NaN();  // the caller holds a base capacitance
-      m.key_params = {"C_ambient_lag"};
+      // The effect exists when the air lags the measured ambient: its time constant C/g differs from
+      // zero. C and g alone are not the evidence: a lag node tied tightly to the room (g well above the
+      // machine's conductance, as the start above) shows only C/g, so C and g can each be weak while
+      // the lag itself is determined to a fraction of a percent.
+      m.key_params = {"C_ambient_lag/g_ambient_lag"};
       m.adds_free_capacitance = true;
       break;
     }

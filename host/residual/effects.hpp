@@ -93,7 +93,9 @@ struct AugmentedModel {
   thermal::Network net;
   Eigen::VectorXd params;                  // base values + effect values (starts, or a truth)
   std::vector<std::string> effect_params;  // the effect's free network parameters
-  std::vector<std::string> key_params;     // those whose significance shows the effect exists
+  // those whose significance shows the effect exists; "a/b" names the ratio of two parameters
+  // (its sigma from their covariance), for an effect whose existence is a time constant C/g
+  std::vector<std::string> key_params;
   int transient_node = -1;                 // heat_source_transient: the virtual node fed by transient_impulses_w()
   std::vector<int> rest_nodes;             // start every recording at the ambient (the transient state: at rest)
   TransientTrigger trigger = TransientTrigger::SpeedIncrease;

@@ -32,6 +32,34 @@ std::string file_name(const std::string& path) {
   return p == std::string::npos ? path : path.substr(p + 1);
 }
 
+// LoopResult::check_floor_k: sqrt(noise^2 + timing^2), timing = rms probe rate x median sample
+// period over the measured cells of the recordings of a BTSM module (metadata `module_id`: every
+// reading is its Kalman filter's estimate); 0 for other recordings (readings taken at their times).
+double measurement_floor(const std::vector<th::Recording>& recs, const std::vector<Eigen::MatrixXd>& measured, double noise_k) {
+  double ss = 0;
+  std::size_t n = 0;
+  std::vector<double> dts;
+  for (std::size_t r = 0; r < recs.size(); ++r) {
+    if (recs[r].meta_value("module_id").empty()) continue;
+    const Eigen::MatrixXd& m = measured[r];
+    for (Eigen::Index k = 1; k < m.rows(); ++k) {
+      const double dt = recs[r].time_s[static_cast<std::size_t>(k)] - recs[r].time_s[static_cast<std::size_t>(k - 1)];
+      if (!(dt > 0)) continue;
+      dts.push_back(dt);
+      for (Eigen::Index c = 0; c < m.cols(); ++c) {
+        const double d = m(k, c) - m(k - 1, c);
+        if (!std::isfinite(d)) continue;
+        ss += (d / dt) * (d / dt);
+        ++n;
+      }
+    }
+  }
+  if (n == 0 || dts.empty()) return noise_k;
+  std::nth_element(dts.begin(), dts.begin() + static_cast<std::ptrdiff_t>(dts.size() / 2), dts.end());
+  const double timing = std::sqrt(ss / static_cast<double>(n)) * dts[dts.size() / 2];
+  return std::sqrt(noise_k * noise_k + timing * timing);
+}
+
 class ResidualLoop {
  public:
   ResidualLoop(const th::Network& base, const Eigen::VectorXd& base_params, const std::vector<th::Recording>& fit,
@@ -53,6 +81,7 @@ class ResidualLoop {
     prune_chosen_on_check();
     polish_chosen();
     challenge_sensor_claim();
+    try_unprobed_heat();
     L_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start_).count();
     say(fmt::format("residual: verdict {} ({}) in {:.1f} s", L_.verdict, L_.label, L_.seconds));
     return std::move(L_);
@@ -164,8 +193,9 @@ class ResidualLoop {
     for (const auto& m : meas_fit_) sig.push_back(th::estimate_noise_sigma(m));
     std::sort(sig.begin(), sig.end());
     L_.noise_sigma_k = sig[sig.size() / 2];
-    say(fmt::format("residual: base rms {:.4g} K (fit), {:.4g} K (check); noise {:.3g} K", L_.before_fit.rmse_k,
-                    L_.before_check.rmse_k, L_.noise_sigma_k));
+    L_.check_floor_k = measurement_floor(check_, meas_check_, L_.noise_sigma_k);
+    say(fmt::format("residual: base rms {:.4g} K (fit), {:.4g} K (check); noise {:.3g} K, check measurement floor {:.3g} K",
+                    L_.before_fit.rmse_k, L_.before_check.rmse_k, L_.noise_sigma_k, L_.check_floor_k));
   }
 
   // Stage 2: whiteness and correlations of the base residual.
@@ -486,36 +516,12 @@ class ResidualLoop {
   // driven heat at each unprobed node is refitted as a rival on the same evidence: a probe lag
   // cannot change what the other probes read, heat at a node does, and the held-out check decides.
   void challenge_sensor_claim() {
-    if (L_.chosen < 0 || !wanted(EffectKind::ExtraHeatInput)) return;
+    if (L_.chosen < 0) return;
     const EffectKind k = L_.candidates[static_cast<std::size_t>(L_.chosen)].spec.kind;
     if (k != EffectKind::SensorLag && k != EffectKind::SensorDrift) return;
-    std::vector<int> unprobed;
-    for (int n = 0; n < base_.node_count(); ++n) {
-      bool probed = false;
-      for (const auto& m : base_.measurements) probed = probed || m.node == n;
-      if (!probed) unprobed.push_back(n);
-    }
-    if (unprobed.empty()) return;
-    ctx_.base_params = bp_;
-    ctx_.base_bic = base_bic_;
-    ctx_.before_check = L_.before_check;
-    bool added = false;
-    for (int n : unprobed)
-      for (double e : {1.0, 2.0}) {
-        Proposal p;
-        p.spec.kind = EffectKind::ExtraHeatInput;
-        p.spec.nodes = {n};
-        p.spec.speed_exponent = e;
-        p.coefficients = {0.0};
-        p.variant = fmt::format("(w/w0)^{:g} while running, rival of the sensor-side claim at an unprobed node", e);
-        say(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(p.spec, base_), p.variant));
-        CandidateResult c = refit_candidate(ctx_, p);
-        if (c.status == "fitted") added = true;
-        L_.candidates.push_back(std::move(c));
-      }
-    if (!added) return;
+    const std::size_t first_rival = L_.candidates.size();
+    if (refit_unprobed_heat("rival of the sensor-side claim at an unprobed node") == 0) return;
     const int sensor = L_.chosen;
-    const std::size_t first_rival = L_.candidates.size() - 2 * unprobed.size();
     reopen_verdicts();
     decide();
     if (L_.chosen != sensor) {
@@ -540,6 +546,49 @@ class ResidualLoop {
     }
   }
 
+  // Stage 7d: for the same reason (the screening hardly sees heat at a node no probe measures), a
+  // decision that ends without a claim (`unexplained`, or `partial`: a held-out error is left) while
+  // the network has unprobed nodes is taken again with speed-driven heat at each of them refitted.
+  void try_unprobed_heat() {
+    if (L_.verdict != "unexplained" && L_.verdict != "partial") return;
+    const int before = L_.chosen;
+    if (refit_unprobed_heat("at an unprobed node, which the screening hardly sees") == 0) return;
+    reopen_verdicts();
+    decide();
+    if (L_.chosen >= 0 && L_.chosen != before) polish_chosen();
+  }
+
+  // Refits speed-driven heat ((w/w0)^1 and ^2) at each node without a probe, jointly with the base
+  // (once per run); returns how many of those refits succeeded.
+  int refit_unprobed_heat(const std::string& why) {
+    if (unprobed_tried_ || !wanted(EffectKind::ExtraHeatInput)) return 0;
+    unprobed_tried_ = true;
+    std::vector<int> unprobed;
+    for (int n = 0; n < base_.node_count(); ++n) {
+      bool probed = false;
+      for (const auto& m : base_.measurements) probed = probed || m.node == n;
+      if (!probed) unprobed.push_back(n);
+    }
+    ctx_.base_params = bp_;
+    ctx_.base_bic = base_bic_;
+    ctx_.before_check = L_.before_check;
+    int fitted = 0;
+    for (int n : unprobed)
+      for (double e : {1.0, 2.0}) {
+        Proposal p;
+        p.spec.kind = EffectKind::ExtraHeatInput;
+        p.spec.nodes = {n};
+        p.spec.speed_exponent = e;
+        p.coefficients = {0.0};
+        p.variant = fmt::format("(w/w0)^{:g} while running, {}", e, why);
+        say(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(p.spec, base_), p.variant));
+        CandidateResult c = refit_candidate(ctx_, p);
+        if (c.status == "fitted") ++fitted;
+        L_.candidates.push_back(std::move(c));
+      }
+    return fitted;
+  }
+
   // Candidates judged before are judged again by the next decide(): their verdicts go back to
   // "fitted" (refused, failed and unfitted ones keep their status and reason).
   void reopen_verdicts() {
@@ -552,6 +601,9 @@ class ResidualLoop {
     const double floor = std::max(L_.noise_sigma_k, 1e-6);
     something_to_explain_ = L_.before_check.rmse_k > o_.significant_rms_factor * floor ||
                             L_.before_fit.rmse_k > o_.significant_rms_factor * floor;
+    // The decision is on held-out evidence: a check error already within its measurement floor
+    // leaves nothing a candidate could explain, not even part of it.
+    const bool check_at_floor = L_.before_check.rmse_k <= L_.check_floor_k;
     int best_effect = -1, best_partial = -1;
     for (std::size_t i = 0; i < L_.candidates.size(); ++i) {
       CandidateResult& c = L_.candidates[i];
@@ -570,6 +622,11 @@ class ResidualLoop {
       if (!(b_ok && z_ok && id_ok && c_ok)) {
         c.status = "rejected";
         c.reason = why;
+      } else if (check_at_floor) {
+        c.status = "rejected";
+        c.reason = why + fmt::format("; but the base model's check error ({:.3g} K) is already within the check recordings' "
+                                     "measurement floor ({:.3g} K): no held-out error to explain",
+                                     L_.before_check.rmse_k, L_.check_floor_k);
       } else if (!something_to_explain_) {
         c.status = "rejected";
         c.reason = why + fmt::format("; but the base model is already within {:.0f}x the noise ({:.3g} K): nothing to explain",
@@ -608,6 +665,14 @@ class ResidualLoop {
                            : fmt::format("{} explains part of the residual only (check RMSE {:.4g} -> {:.4g} K, x{:.2f}); "
                                          "reported, not claimed",
                                          c.label, L_.before_check.rmse_k, L_.after_check.rmse_k, c.check_factor);
+      return;
+    }
+    if (check_at_floor) {
+      L_.verdict = L_.effect = L_.label = "none";
+      L_.explanation = fmt::format("the base model's check error ({:.3g} K) is within the check recordings' measurement floor "
+                                   "({:.3g} K: noise {:.3g} K and a reading up to one sample period late); no held-out error is "
+                                   "left for an effect to explain (fit {:.3g} K)",
+                                   L_.before_check.rmse_k, L_.check_floor_k, floor, L_.before_fit.rmse_k);
       return;
     }
     if (!something_to_explain_ || (all_white_ && L_.before_check.rmse_k <= o_.significant_rms_factor * floor)) {
@@ -675,7 +740,7 @@ class ResidualLoop {
   int base_free_ = 0;
   std::vector<int> free_params_, held_;
   double base_bic_ = 0;
-  bool all_white_ = true, something_to_explain_ = false, ambient_refused_ = false;
+  bool all_white_ = true, something_to_explain_ = false, ambient_refused_ = false, unprobed_tried_ = false;
   std::vector<Eigen::MatrixXd> meas_fit_, meas_check_, nodes_fit_, nodes_check_;
   std::vector<std::string> boundaries_, events_, usable_boundaries_, usable_events_;
   std::vector<th::Recording> fit_refit_;

@@ -26,7 +26,9 @@
 //      `partial` (the best partial one; reported, never claimed), `none` (no candidate passes
 //      and the residual is white noise or within significant_rms_factor x noise), `unexplained`
 //      (structure nothing explains). Nothing is claimed while the base model's check and fit
-//      errors are within significant_rms_factor x the noise: there is nothing to explain.
+//      errors are within significant_rms_factor x the noise: there is nothing to explain. Nor
+//      anything, not even `partial`, while the check error is within the check recordings'
+//      measurement floor (LoopResult::check_floor_k): no held-out error is left to explain part of.
 #include "host/residual/effects.hpp"
 #include "host/residual/evaluation.hpp"
 #include "host/residual/residual_stats.hpp"
@@ -126,6 +128,13 @@ struct LoopResult {
   std::vector<std::string> correlated_signals;  // for "unexplained"
   std::string explanation;
   double noise_sigma_k = 0;
+  // K, what the check recordings' measurement alone may leave: the noise, and for a BTSM module's
+  // recordings (metadata `module_id`) the error of a reading up to one sample period late,
+  // sqrt(noise^2 + (rms probe rate x sample period)^2). Every module reading is its Kalman filter's
+  // estimate, which lags the probe (3.6 s at the default q, r and 5 s samples; the second
+  // differences behind the noise sigma do not see that lag): a lag or time offset within one sample
+  // cannot be told from the chain. Other recordings: the noise sigma.
+  double check_floor_k = 0;
   ErrorMetrics before_fit, before_check, after_fit, after_check;
   thermal::FitResult base_fit;
   bool base_repolished = false;       // the base was refitted from a candidate's values into a better minimum

@@ -54,6 +54,7 @@ nlohmann::json to_json(const LoopResult& r) {
   j["parameters"] = params_json(r.params);
   j["explanation"] = r.explanation;
   j["noise_sigma_K"] = num(r.noise_sigma_k);
+  j["check_floor_K"] = num(r.check_floor_k);
   j["rmse_before_K"] = num(r.before_check.rmse_k);
   j["rmse_after_K"] = num(r.after_check.rmse_k);
   j["nmse_before"] = num(r.before_check.nmse_min);
@@ -120,8 +121,8 @@ nlohmann::json to_json(const LoopResult& r) {
 
 std::string format_table(const LoopResult& r) {
   std::ostringstream o;
-  o << fmt::format("Residual loop on network '{}' ({} measured columns), noise sigma {:.3g} K\n", r.base_net.name, r.columns.size(),
-                   r.noise_sigma_k);
+  o << fmt::format("Residual loop on network '{}' ({} measured columns), noise sigma {:.3g} K, check measurement floor {:.3g} K\n",
+                   r.base_net.name, r.columns.size(), r.noise_sigma_k, r.check_floor_k);
   o << "\nResidual tests of the base model (fit + check recordings; LB = Ljung-Box p-value):\n";
   o << fmt::format("  {:<10} {:<16} {:>9} {:>6} {:>9} {:>9} {:>9} {:>6}  {}\n", "column", "node", "rms [K]", "lag1", "LB all",
                    "LB oper.", "LB cool", "white", "strongest correlations (r)");

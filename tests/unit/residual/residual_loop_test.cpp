@@ -165,6 +165,29 @@ TEST(ResidualLoopDecision, CleanDataGiveNone) {
   for (const auto& c : r.candidates) EXPECT_NE(c.status, "effect") << c.label;
 }
 
+// Clean plant recorded by a module (metadata module_id), every reading through a filter that lags
+// it by 20 s (below the 30 s sample period, as the module's own filter): the base model's check
+// error is above twice the white noise (what the noise test alone calls something to explain) but
+// within the check recordings' measurement floor (noise and a reading up to one sample period
+// late). The held-out part holds nothing to explain, not even part of it: `none`, with that
+// reason, and no candidate `partial` or `effect`. (Recordings without module_id: the floor is the
+// noise sigma, which the family tests above run on.)
+TEST(ResidualLoopDecision, ACheckErrorWithinTheMeasurementFloorGivesNone) {
+  test::Truth t;
+  t.no_effect = true;
+  t.reading_lag_s = 20;
+  t.module_recording = true;
+  const test::Recordings rec = test::make_recordings(t);
+  const LoopResult r = run_residual_loop(th::preset_network("spindle4"), Eigen::VectorXd(), rec.fit, rec.check, quiet_options());
+  ASSERT_GT(r.check_floor_k, r.noise_sigma_k);
+  EXPECT_GT(r.before_check.rmse_k, 2 * r.noise_sigma_k) << "the case no longer tests the floor: " << format_table(r);
+  EXPECT_LE(r.before_check.rmse_k, r.check_floor_k) << format_table(r);
+  EXPECT_EQ(r.verdict, "none") << format_table(r);
+  EXPECT_NE(r.explanation.find("measurement floor"), std::string::npos) << r.explanation;
+  for (const auto& c : r.candidates) EXPECT_TRUE(c.status != "effect" && c.status != "partial") << c.label << ": " << c.reason;
+  EXPECT_EQ(to_json(r)["check_floor_K"], r.check_floor_k);
+}
+
 // A declared event column without any event in the fit recordings: the family is refused with the
 // reason, even though the check recording has events.
 TEST(ResidualLoopDecision, AnEventFamilyWithoutEventsInTheFitPartIsRefused) {

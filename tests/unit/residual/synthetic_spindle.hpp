@@ -41,6 +41,10 @@ struct Truth {
   bool coolant_column = false;             // a declared coolant column cycling around 17 degC
   bool event_column = false;               // a declared lid_open column, opened twice per run
   bool no_effect = false;
+  // s, every reading passed through a first-order filter of this lag (0: none) after the noise,
+  // as a module's own filter does: a real lag of the measurement chain, not of the plant
+  double reading_lag_s = 0;
+  bool module_recording = false;           // metadata `module_id` (recorded from a BTSM module)
 };
 
 // One recording of the truth. Declared columns are declared in the metadata.
@@ -80,18 +84,22 @@ inline thermal::Recording simulate(const Programme& prog, const AugmentedModel& 
   if (t.coolant_column) boundaries.push_back("coolant_c");
   if (t.event_column) events.push_back("lid_open");
   thermal::declare_columns(rec, boundaries, events);
+  if (t.module_recording) rec.meta.emplace_back("module_id", "0000de70");
   Eigen::MatrixXd extra;
   if (truth.transient_node >= 0) extra = transient_impulses_w(truth.net, rec, truth.transient_node, truth.trigger);
   const Eigen::VectorXd x0 = Eigen::VectorXd::Constant(truth.net.node_count(), rec.ambient_c[0]);
   const Eigen::MatrixXd nodes = thermal::simulate_recording(truth.net, truth.params, rec, x0, truth.transient_node >= 0 ? &extra : nullptr);
   std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 0.005);
+  const double gain = dt / (t.reading_lag_s + dt);  // a ramp read through it lags by reading_lag_s
   for (std::size_t j = 0; j < truth.net.measurements.size(); ++j) {
     const auto& m = truth.net.measurements[j];
+    double filtered = 0;
     for (Eigen::Index k = 0; k < rows; ++k) {
       double v = nodes(k, m.node) + noise(rng);
       if (m.drift_param >= 0) v += truth.params[m.drift_param] * rec.time_s[static_cast<std::size_t>(k)] / 3600.0;
-      rec.temp_c(k, static_cast<Eigen::Index>(j)) = v;
+      filtered = k == 0 ? v : filtered + gain * (v - filtered);
+      rec.temp_c(k, static_cast<Eigen::Index>(j)) = filtered;
     }
   }
   return rec;
