@@ -487,8 +487,26 @@ bool polish_candidate(const CandidateContext& ctx, CandidateResult& c) {
   am.trigger = c.trigger;
   th::FitOptions f = joint_options(ctx, am, c.values, *ctx.fit);
   f.hold = c.held;  // the rebuilt model does not know which capacitance the refit held
-  const th::FitResult fr = th::fit_network(am.net, *ctx.fit, f);
+  th::FitResult fr = th::fit_network(am.net, *ctx.fit, f);
   if (!(fr.rms_K < c.fit.rmse_k)) return false;
+  // The refit's rule on the full-rate data too: a non-key effect parameter they cannot see (a pure
+  // ambient lag's conductance: only C/g shows) is held at its value and the rest refitted, so the
+  // candidate is not rejected for that unseen direction.
+  std::vector<std::string> unseen;
+  for (const auto& name : am.effect_params) {
+    if (is_key(am, name) || std::find(f.hold.begin(), f.hold.end(), name) != f.hold.end()) continue;
+    const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
+    if (est.status == th::Identifiability::NotIdentifiable || est.at_bound) unseen.push_back(name);
+  }
+  if (!unseen.empty()) {
+    f.hold.insert(f.hold.end(), unseen.begin(), unseen.end());
+    f.start = fr.params;
+    fr = th::fit_network(am.net, *ctx.fit, f);
+    c.held = f.hold;
+    if (ctx.progress)
+      ctx.progress(fmt::format("residual:     {}: {} not identifiable on the full-rate recordings, held at {:.4g}; refit rms {:.4g} K", c.label,
+                               unseen.front(), fr.params[am.net.param_index(unseen.front())], fr.rms_K));
+  }
   c.values = fr.params;
   fill_evidence(ctx, am, c.spec, fr, c);
   return true;
