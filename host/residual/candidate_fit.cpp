@@ -12,6 +12,13 @@ namespace btsm::residual {
 namespace th = btsm::thermal;
 namespace {
 
+// A probe whose column carries at least this share of the base fit's residual sum of squares
+// dominates it: one distorted reading is then the likeliest reason for the misfit, and a probe
+// lag there is also started from the base fitted without that probe. A column of four to five
+// carrying over half of the misfit is far from what an effect at a node spreads over its
+// neighbours' probes.
+constexpr double kProbeDominatesShare = 0.5;
+
 int largest_capacitance_param(const th::Network& net, const Eigen::VectorXd& p) {
   int best = -1;
   for (const auto& nd : net.nodes)
@@ -100,7 +107,11 @@ void fill_evidence(const CandidateContext& ctx, const AugmentedModel& am, const 
   cr.check = error_metrics(rc, ctx.measured_check);
   std::size_t nn = 0;
   const double rss = sum_of_squares(rf, nn);
-  const int k = fr.free_parameter_count + cr.net.node_count() * static_cast<int>(fit.size());
+  // unknowns: the free parameters, every recording's initial state and a drifting probe's offset
+  // in every recording (thermal/network.hpp)
+  int drifting = 0;
+  for (const auto& m : cr.net.measurements) drifting += m.drift_param >= 0 ? 1 : 0;
+  const int k = fr.free_parameter_count + (cr.net.node_count() + drifting) * static_cast<int>(fit.size());
   cr.bic = bic(rss, nn, k);
   cr.delta_bic = ctx.base_bic - cr.bic;
   cr.check_factor = cr.check.rmse_k > 0 ? ctx.before_check.rmse_k / cr.check.rmse_k : 0;
@@ -237,6 +248,65 @@ CandidateResult candidate_of(const Proposal& p, const th::Network& base) {
   return c;
 }
 
+// The share of the base fit's residual sum of squares (on the fit recordings) that one measured
+// column carries.
+double residual_share_of_column(const CandidateContext& ctx, const std::string& column) {
+  const th::Network& base = *ctx.base;
+  int mi = -1;
+  for (std::size_t m = 0; m < base.measurements.size(); ++m)
+    if (base.measurements[m].column == column) mi = static_cast<int>(m);
+  if (mi < 0) return 0.0;
+  double own = 0, all = 0;
+  for (const auto& rec : *ctx.fit) {
+    const Evaluation ev = evaluate_model(base, ctx.base_params, rec);
+    for (Eigen::Index c = 0; c < ev.residual_k.cols(); ++c)
+      for (Eigen::Index k = 0; k < ev.residual_k.rows(); ++k) {
+        const double e = ev.residual_k(k, c);
+        if (!std::isfinite(e)) continue;
+        all += e * e;
+        if (c == mi) own += e * e;
+      }
+  }
+  return all > 0 ? own / all : 0.0;
+}
+
+// The base parameters fitted (staged, from the data) without one probe's distortion: a probe whose
+// own reading is distorted (a drift, a lag) drags the base fit into a basin that also bends the
+// other columns, and no start near that basin leads to the joint optimum.
+// - A lag (`drifted` null): the probe is left out; its node is simply unprobed.
+// - A drift: the probe stays in, its readings with the drift of `drifted` (an augmented model
+//   fitted so far: its ramp and its least-squares offset in every recording) taken off. The
+//   staged fit's equation-error stages use the readings themselves, and a probe offset by up to
+//   a kelvin or more bends every parameter they start.
+th::FitResult base_fit_without_probe(const CandidateContext& ctx, const std::string& column, const std::vector<th::Recording>& recs,
+                                     const AugmentedModel* drifted, const Eigen::VectorXd& drifted_params) {
+  th::Network net = *ctx.base;
+  std::vector<th::Recording> corrected;
+  if (drifted) {
+    int mi = -1;
+    for (std::size_t m = 0; m < drifted->net.measurements.size(); ++m)
+      if (drifted->net.measurements[m].column == column) mi = static_cast<int>(m);
+    if (mi < 0) throw std::invalid_argument("no measurement of " + column);
+    const int node = drifted->net.measurements[static_cast<std::size_t>(mi)].node;
+    corrected = recs;
+    for (auto& rec : corrected) {
+      // model at the column = node + drift ramp + offset: what the probe adds is the difference
+      const Evaluation ev = evaluate_model(drifted->net, drifted_params, rec, nullptr, nullptr, drifted->rest_nodes);
+      const int c = rec.channel_index(column);
+      for (Eigen::Index k = 0; k < ev.model_c.rows(); ++k) rec.temp_c(k, c) -= ev.model_c(k, mi) - ev.nodes_c(k, node);
+    }
+  } else {
+    net.measurements.erase(std::remove_if(net.measurements.begin(), net.measurements.end(),
+                                          [&](const th::Measurement& m) { return m.column == column; }),
+                           net.measurements.end());
+  }
+  th::FitOptions f;
+  f.sum_scores_over_runs = false;  // as in joint_options
+  f.staged = true;
+  f.max_iterations = ctx.joint_iterations;
+  return th::fit_network(net, corrected.empty() ? recs : corrected, f);
+}
+
 CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) {
   const auto t0 = std::chrono::steady_clock::now();
   const th::Network& base = *ctx.base;
@@ -256,10 +326,25 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     // base fit absorbed much of the effect into wrong base values, neither (1) nor (2) is near
     // the joint optimum, and the staged pipeline needs no start (every family but a
     // sensor lag: its probe state is not measured, which the equation-error starts need).
-    struct Start { Proposal p; bool pinned, on_best_base; const char* what; bool staged = false; };
+    // (5) For a probe's drift, after (1)-(4): the base staged-fitted on the probe's readings with
+    // the drift of the best start so far taken off (base_fit_without_probe), then the effect alone
+    // on it; the staged pipeline of (4) takes the drifted readings at face value in its
+    // equation-error stages. For a probe's lag whose column carries most of the base residual: the
+    // base fitted without that probe, then the effect alone on it.
+    struct Start { Proposal p; bool pinned, on_best_base; const char* what; bool staged = false; bool without_probe = false; };
     std::vector<Start> starts{{p, false, false, "base fit"}};
     if (ctx.fit_base) starts.push_back({p, true, false, "base refitted around the screening's effect"});
     if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag) starts.push_back({p, false, false, "staged fit of base + effect from the data", true});
+    if (ctx.fit_base && p.spec.kind == EffectKind::SensorDrift)
+      starts.push_back({p, false, false, "base fitted on the probe with the drift so far taken off", false, true});
+    if (ctx.fit_base && p.spec.kind == EffectKind::SensorLag) {
+      const double share = residual_share_of_column(ctx, p.spec.column);
+      if (share >= kProbeDominatesShare) {
+        say(fmt::format("residual:     {}: column {} carries {:.0f} % of the base residual: the base is also fitted without it", cr.label,
+                        p.spec.column, 100 * share));
+        starts.push_back({p, false, false, "base fitted without the probe", false, true});
+      }
+    }
     th::FitOptions fo;
     fo.sum_scores_over_runs = false;  // as in joint_options
     fo.staged = false;
@@ -279,7 +364,19 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
         q.spec.tau_s = p.spec.tau_s * 2.5;
         starts.push_back({q, false, true, "second time constant"});
       }
-      const Eigen::VectorXd& base_values = starts[s].on_best_base ? best_base : ctx.base_params;
+      Eigen::VectorXd base_values = starts[s].on_best_base ? best_base : ctx.base_params;
+      if (starts[s].without_probe) {
+        try {
+          const bool drift = p.spec.kind == EffectKind::SensorDrift && std::isfinite(best_rms);
+          const th::FitResult fw = base_fit_without_probe(ctx, p.spec.column, refit, drift ? &best_am : nullptr, best.params);
+          say(fmt::format("residual:     {} start {}: the base fitted {} {}: rms {:.4g} K", cr.label, s + 1,
+                          drift ? "with the drift so far taken off" : "without", p.spec.column, fw.rms_K));
+          base_values = fw.params;
+        } catch (const std::exception& e) {
+          say(fmt::format("residual:     {} start {} ({}) failed: {}", cr.label, s + 1, starts[s].what, e.what()));
+          continue;
+        }
+      }
       AugmentedModel am = augment(base, base_values, starts[s].p.spec, start_values(base, base_values, starts[s].p));
       if (starts[s].staged) {
         th::FitOptions fs;

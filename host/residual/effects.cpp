@@ -305,7 +305,7 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
       if (base.measurements[static_cast<std::size_t>(mi)].drift_param >= 0)
         throw std::invalid_argument("sensor_drift: column '" + e.column + "' drifts already");
       const int p = add(m, param("d_" + e.column, "K/h", 0.0, -10.0, 10.0, false,
-                                 "drift of the probe of " + e.column + " since the recording's first sample"),
+                                 "drift of the probe of " + e.column + " (its offset: one nuisance per recording)"),
                         values);
       m.net.measurements[static_cast<std::size_t>(mi)].drift_param = p;
       m.key_params.push_back("d_" + e.column);

@@ -25,7 +25,9 @@
 //   sensor_lag              the probe of a column lags its node: a probe node (C = 1 J/K, fixed)
 //                           tied to the node by R = tau; the column measures the probe node.
 //   sensor_drift            the probe of a column drifts: d_<column> K/h x hours since the
-//                           recording's first sample (a drifting measurement, network.hpp).
+//                           recording's first sample, plus its offset then, unknown (how long it
+//                           drifted before): a nuisance per recording (a drifting measurement,
+//                           network.hpp).
 //   ambient_dynamics        the air/structure around the machine is not at the measured ambient:
 //                           every ambient link moves to a node "ambient_lag" (C_ambient_lag) tied
 //                           to the measured ambient by g_ambient_lag.

@@ -69,6 +69,13 @@ Evaluation evaluate_model(const th::Network& net, const Eigen::VectorXd& params,
       const double y = rec.temp_c(k, cols[j]);
       ev.residual_k(k, jj) = std::isfinite(y) ? y - ev.model_c(k, jj) : kNaN;
     }
+    if (m.drift_param >= 0) {
+      // the drifting probe's offset at the recording's start: its least-squares value (the least-
+      // squares initial state above saw the same offset removed: prediction_residuals)
+      const double offset = th::drift_offset_k(ev.residual_k.col(jj));
+      ev.model_c.col(jj).array() += offset;
+      ev.residual_k.col(jj).array() -= offset;
+    }
   }
   return ev;
 }

@@ -20,7 +20,8 @@ struct ErrorMetrics {
 
 // Model temperatures at the measured columns and residuals (measured - model) for one recording,
 // with the initial state estimated by linear least squares (the response is affine in x0) unless
-// given. A drifting measurement's drift is part of the model temperature at its column.
+// given. A drifting measurement's drift is part of the model temperature at its column, with its
+// least-squares offset for the recording (thermal/network.hpp).
 struct Evaluation {
   Eigen::MatrixXd model_c;     // rows x columns
   Eigen::MatrixXd residual_k;  // rows x columns, NaN where not measured

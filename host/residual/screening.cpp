@@ -30,12 +30,16 @@ struct Group {
   std::string variant;       // readable
   std::string variant_key;   // the variant without its time constant (for the stability match)
   bool output = false;       // regressors act on measured columns (sensor families)
+  // the regressors of one column are taken together (a probe drift: its ramp and its offset in
+  // every recording; the ramp, recording -1, leads)
+  bool block_per_column = false;
   std::vector<int> regs;
 };
 struct Reg {
   int group = 0;
   int node = -1;             // heat regressors: the node acted on (-1: several, ambient_dynamics)
   int column = -1;           // output regressors: index of the measured column
+  int recording = -1;        // a probe's offset: 1 at its column in this fit recording only
 };
 struct Dictionary {
   std::vector<Group> groups;
@@ -44,8 +48,8 @@ struct Dictionary {
     groups.push_back(g);
     return static_cast<int>(groups.size()) - 1;
   }
-  void add_reg(int g, int node, int column) {
-    regs.push_back({g, node, column});
+  void add_reg(int g, int node, int column, int recording = -1) {
+    regs.push_back({g, node, column, recording});
     groups[static_cast<std::size_t>(g)].regs.push_back(static_cast<int>(regs.size()) - 1);
   }
 };
@@ -135,9 +139,18 @@ Dictionary build_dictionary(const th::Network& net, const ScreeningInput& in, co
     Group g;
     g.spec.kind = EffectKind::SensorDrift;
     g.output = true;
-    g.variant = g.variant_key = "linear in time since the recording's start";
+    g.variant = g.variant_key = "linear in time, own offset per recording";
+    // The recordings do not say how long the probe has drifted before each of them (no absolute
+    // time), so its offset is one unknown per recording (as the refit has it, thermal/network.hpp):
+    // a ramp alone would leave the steps between recordings, usually most of the signal, to the
+    // base parameters.
+    g.block_per_column = true;
     const int gi = d.add_group(g);
-    for (int c = 0; c < nc; ++c) d.add_reg(gi, -1, c);
+    const int R = static_cast<int>(in.fit->size());
+    for (int c = 0; c < nc; ++c) {
+      d.add_reg(gi, -1, c);
+      for (int r = 0; r < R; ++r) d.add_reg(gi, -1, c, r);
+    }
   }
   if (wanted(fam, EffectKind::AmbientDynamics)) {
     bool has_amb = false;
@@ -199,6 +212,7 @@ std::vector<double> lowpass(const std::vector<double>& x, const std::vector<doub
 // What one fit recording contributes: base prediction, its Jacobian, the regressors' responses.
 struct RecordingContext {
   const th::Recording* rec = nullptr;
+  int index = 0;             // among the fit recordings
   Eigen::MatrixXd nodes_c;   // base node temperatures, rows x nodes
   Eigen::MatrixXd model_c;   // at the measured columns
   Eigen::MatrixXd resid;     // measured - model
@@ -246,7 +260,9 @@ void regressor_series(const th::Network& net, const Eigen::VectorXd& p, const Di
         for (std::size_t k = 0; k < rec.rows(); ++k) x[k] = ctx.model_c(static_cast<Eigen::Index>(k), r.column);
         const std::vector<double> lp = lowpass(x, rec.time_s, g.spec.tau_s);
         for (Eigen::Index k = 0; k < rows; ++k) y(k, r.column) = lp[static_cast<std::size_t>(k)] - x[static_cast<std::size_t>(k)];
-      } else {  // SensorDrift
+      } else if (r.recording >= 0) {  // SensorDrift: the probe's offset in one recording
+        if (r.recording == ctx.index) y.col(r.column).setOnes();
+      } else {  // SensorDrift: the ramp
         for (Eigen::Index k = 0; k < rows; ++k) y(k, r.column) = (rec.time_s[static_cast<std::size_t>(k)] - rec.time_s.front()) / 3600.0;
       }
       output[j] = std::move(y);
@@ -402,17 +418,23 @@ Selection select_family(const Dictionary& d, const Stats& st, EffectKind kind, i
     bool first = true;
     while (static_cast<int>(set.size()) < limit) {
       int pick = -1;
+      std::vector<int> pick_set;
       double pick_gain = cur_gain, pick_score = -std::numeric_limits<double>::infinity();
       for (int r : g.regs) {
         if (std::find(set.begin(), set.end(), r) != set.end()) continue;
+        if (g.block_per_column && d.regs[static_cast<std::size_t>(r)].recording >= 0) continue;
         if (!(st.M(r, r) > 1e-12 * mscale)) continue;
         std::vector<int> trial = set;
         trial.push_back(r);
+        if (g.block_per_column)
+          for (int o : g.regs)
+            if (o != r && d.regs[static_cast<std::size_t>(o)].column == d.regs[static_cast<std::size_t>(r)].column) trial.push_back(o);
         const double gn = gain_of(st, trial);
         if (gn < 0) continue;
         const double sc = score_of(st.rss0, gn, trial.size(), n_eff);
         if (sc > pick_score || (pick < 0 && first)) {
           pick = r;
+          pick_set = trial;
           pick_gain = gn;
           pick_score = sc;
         }
@@ -421,7 +443,7 @@ Selection select_family(const Dictionary& d, const Stats& st, EffectKind kind, i
       // the first regressor of a group is always taken (so every family has a best group to
       // report); further ones only when they improve the criterion
       if (!first && !(pick_score > cur_score)) break;
-      set.push_back(pick);
+      set = pick_set;
       cur_gain = pick_gain;
       cur_score = pick_score;
       first = false;
@@ -501,6 +523,7 @@ ScreeningResult screen_effects(const ScreeningInput& in, const ScreeningOptions&
     const std::vector<int> cols = th::measurement_columns(net, rec);
     RecordingContext ctx;
     ctx.rec = &rec;
+    ctx.index = r;
     const Evaluation base = evaluate_model(net, in.params, rec, nullptr, &in.x0[static_cast<std::size_t>(r)]);
     ctx.nodes_c = base.nodes_c;
     ctx.model_c = base.model_c;

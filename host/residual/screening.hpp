@@ -10,7 +10,8 @@
 //     (ambient - node); a node's own temperature through a lag minus itself (a missing mass); the
 //     ambient through a lag minus the ambient, at every ambient link;
 //   output regressors (K at a column): the column's model temperature through a lag minus itself
-//     (a probe lag), hours since the recording's start (a probe drift).
+//     (a probe lag), hours since the recording's start with the probe's own offset in every
+//     recording (a probe drift: how long it drifted before a recording is not recorded).
 // What the base refit would absorb is projected out first: the regression runs in the orthogonal
 // complement of the base model's Jacobian (its free parameters and every recording's initial
 // state), so a regressor the base parameters can imitate scores nothing, and the scale gauge (a

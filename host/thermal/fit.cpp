@@ -438,6 +438,17 @@ Eigen::VectorXd first_sample_state(const Network& net, const Recording& rec) {
   return state_from_row(net, rec, measurement_columns(net, rec), 0);
 }
 
+double drift_offset_k(const Eigen::Ref<const Eigen::VectorXd>& residual_k) {
+  double sum = 0;
+  std::size_t n = 0;
+  for (Eigen::Index k = 0; k < residual_k.size(); ++k)
+    if (std::isfinite(residual_k[k])) {
+      sum += residual_k[k];
+      ++n;
+    }
+  return n ? sum / static_cast<double>(n) : 0.0;
+}
+
 Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
                                      const Eigen::VectorXd& x0, const Eigen::MatrixXd* extra) {
   const auto cols = measurement_columns(net, rec);
@@ -445,9 +456,13 @@ Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& 
   Eigen::MatrixXd r(sim.rows(), static_cast<Eigen::Index>(cols.size()));
   for (std::size_t m = 0; m < cols.size(); ++m) {
     r.col(static_cast<Eigen::Index>(m)) = sim.col(net.measurements[m].node) - rec.temp_c.col(cols[m]);
-    if (const int d = net.measurements[m].drift_param; d >= 0)  // a drifting probe (network.hpp)
+    if (const int d = net.measurements[m].drift_param; d >= 0) {  // a drifting probe (network.hpp)
+      const auto c = static_cast<Eigen::Index>(m);
       for (Eigen::Index k = 0; k < r.rows(); ++k)
-        r(k, static_cast<Eigen::Index>(m)) += params[d] * (rec.time_s[static_cast<std::size_t>(k)] - rec.time_s.front()) / 3600.0;
+        r(k, c) += params[d] * (rec.time_s[static_cast<std::size_t>(k)] - rec.time_s.front()) / 3600.0;
+      // its offset at the recording's start: the least-squares constant (the fit eliminates it alike)
+      r.col(c) = r.col(c).array() - drift_offset_k(r.col(c));
+    }
   }
   return r;  // NaN where the measurement is missing
 }

@@ -133,9 +133,13 @@ FitResult fit_network(const Network& net, const std::vector<Recording>& recs, co
 std::string fit_result_problem(const Network& net, const FitResult& fit);
 
 // Residuals (predicted - measured, rows x measurements, NaN = missing) for given parameters and
-// initial state; the building block of validation and residual analysis.
+// initial state; the building block of validation and residual analysis. A drifting probe's
+// column has its least-squares offset for the recording removed (network.hpp: the offset at a
+// recording's start is a nuisance, like the initial state).
 Eigen::MatrixXd prediction_residuals(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
                                      const Eigen::VectorXd& x0_c, const Eigen::MatrixXd* extra_heat_w = nullptr);
+// The least-squares offset of a drifting probe's column: the mean of its finite residuals.
+double drift_offset_k(const Eigen::Ref<const Eigen::VectorXd>& residual_k);
 // Initial state guess from the first row (unmeasured nodes = ambient + mean measured rise).
 Eigen::VectorXd first_sample_state(const Network& net, const Recording& rec);
 

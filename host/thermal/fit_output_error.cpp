@@ -118,15 +118,16 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
       if (!std::isfinite(y)) continue;
       const int node = meas[m].node;
       if (meas[m].drift_param < 0) {
-        sink(k - run.begin, x[node] - y, S.row(node), X.row(node));
+        sink(k - run.begin, m, x[node] - y, S.row(node), X.row(node));
         continue;
       }
-      // a drifting probe reads drift [K/h] x hours since the recording's first sample too high
+      // a drifting probe reads drift [K/h] x hours since the recording's first sample too high,
+      // plus its offset at that sample (a nuisance per recording, eliminated by the caller)
       const double hours = (rec.time_s[k] - rec.time_s.front()) / 3600.0;
       drow = S.row(node);
       const int j = drift_free_[m];
       if (j >= 0) drow[j] += hours * pr_.tf[static_cast<std::size_t>(j)].dp_dz(pr_.tf[static_cast<std::size_t>(j)].to_z(pr_.p[meas[m].drift_param]));
-      sink(k - run.begin, x[node] + pr_.p[meas[m].drift_param] * hours - y, drow, X.row(node));
+      sink(k - run.begin, m, x[node] + pr_.p[meas[m].drift_param] * hours - y, drow, X.row(node));
     }
     if (k == run.end) break;
     const double amb = rec.ambient_c[k];
@@ -159,13 +160,33 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
 
 void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const {
   const int n = pr_.n(), nf = pr_.nf();
+  // A drifting probe's offset at the recording's start is unknown (the recording does not say how
+  // long the probe has been drifting): one constant per recording and drifting column, eliminated
+  // exactly (variable projection). For a constant c with dr/dc = 1 over the column's N cells, the
+  // reduced problem is r - mean r, J - mean J: ssr - (sum r)^2/N, J'J - s s'/N, J'r - s (sum r)/N,
+  // s = sum of the Jacobian rows; so each is accumulated alongside the run.
+  const auto& meas = pr_.net->measurements;
+  std::vector<double> off_sum_r(meas.size(), 0.0), off_count(meas.size(), 0.0);
+  std::vector<Eigen::VectorXd> off_sum_j(meas.size());
+  auto drifting = [&](std::size_t m) { return meas[m].drift_param >= 0; };
+  auto reduce_ssr = [&] {
+    for (std::size_t m = 0; m < meas.size(); ++m)
+      if (drifting(m) && off_count[m] > 0) ev.ssr -= off_sum_r[m] * off_sum_r[m] / off_count[m];
+  };
   if (!with_jacobian) {
-    simulate_run(ri, false, [&](std::size_t, double r, const auto&, const auto&) {
+    simulate_run(ri, false, [&](std::size_t, std::size_t m, double r, const auto&, const auto&) {
       ev.ssr += r * r;
       ++ev.count;
+      if (drifting(m)) {
+        off_sum_r[m] += r;
+        off_count[m] += 1;
+      }
     });
+    reduce_ssr();
     return;
   }
+  for (std::size_t m = 0; m < meas.size(); ++m)
+    if (drifting(m)) off_sum_j[m] = Eigen::VectorXd::Zero(local);
   // J^T J of the run from Jacobian rows gathered in blocks (a rank-k update beats k rank-1 ones).
   constexpr int kBlock = 512;
   Eigen::MatrixXd jbuf(kBlock, local);
@@ -179,16 +200,27 @@ void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int 
     gl.noalias() += jbuf.topRows(fill).transpose() * rbuf.head(fill);
     fill = 0;
   };
-  simulate_run(ri, true, [&](std::size_t, double r, const auto& d_params, const auto& d_x0) {
+  simulate_run(ri, true, [&](std::size_t, std::size_t m, double r, const auto& d_params, const auto& d_x0) {
     ev.ssr += r * r;
     ++ev.count;
     jbuf.row(fill).head(nf) = d_params;
     if (pr_.estimate_x0) jbuf.row(fill).tail(n) = d_x0;
     rbuf[fill] = r;
+    if (drifting(m)) {
+      off_sum_r[m] += r;
+      off_count[m] += 1;
+      off_sum_j[m] += jbuf.row(fill).transpose();
+    }
     if (++fill == kBlock) flush();
   });
   flush();
   Hl.triangularView<Eigen::Upper>() = Hl.transpose();
+  reduce_ssr();
+  for (std::size_t m = 0; m < meas.size(); ++m)
+    if (drifting(m) && off_count[m] > 0) {
+      Hl.noalias() -= off_sum_j[m] * off_sum_j[m].transpose() / off_count[m];
+      gl.noalias() -= off_sum_j[m] * (off_sum_r[m] / off_count[m]);
+    }
   ev.H.topLeftCorner(nf, nf) += Hl.topLeftCorner(nf, nf);
   ev.g.head(nf) += gl.head(nf);
   if (pr_.estimate_x0) {
@@ -205,11 +237,36 @@ Eigen::MatrixXd OutputErrorEvaluator::row_scores(std::size_t ri, const Eigen::Ve
   build_keys(true);
   const int n = pr_.n(), nf = pr_.nf();
   const Run& run = pr_.runs[ri];
-  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(run.end - run.begin + 1), nf + (pr_.estimate_x0 ? n : 0));
-  simulate_run(ri, true, [&](std::size_t row, double r, const auto& dp, const auto& dx) {
+  const int local = nf + (pr_.estimate_x0 ? n : 0);
+  Eigen::MatrixXd G = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(run.end - run.begin + 1), local);
+  // a drifting probe's per-recording offset (see evaluate_run): the scores of the reduced problem,
+  // (r - mean r)(J - mean J), need the means first
+  const auto& meas = pr_.net->measurements;
+  std::vector<double> mean_r(meas.size(), 0.0), count(meas.size(), 0.0);
+  std::vector<Eigen::VectorXd> mean_j(meas.size(), Eigen::VectorXd::Zero(local));
+  Eigen::VectorXd row_j(local);
+  bool any_drift = false;
+  for (const auto& m : meas) any_drift = any_drift || m.drift_param >= 0;
+  if (any_drift) {
+    simulate_run(ri, true, [&](std::size_t, std::size_t m, double r, const auto& dp, const auto& dx) {
+      if (meas[m].drift_param < 0) return;
+      mean_r[m] += r;
+      count[m] += 1;
+      mean_j[m].head(nf) += dp.transpose();
+      if (pr_.estimate_x0) mean_j[m].tail(n) += dx.transpose();
+    });
+    for (std::size_t m = 0; m < meas.size(); ++m)
+      if (count[m] > 0) {
+        mean_r[m] /= count[m];
+        mean_j[m] /= count[m];
+      }
+  }
+  simulate_run(ri, true, [&](std::size_t row, std::size_t m, double r, const auto& dp, const auto& dx) {
     const auto k = static_cast<Eigen::Index>(row);
-    G.row(k).head(nf) += r * dp;
-    if (pr_.estimate_x0) G.row(k).tail(n) += r * dx;
+    row_j.head(nf) = dp.transpose();
+    if (pr_.estimate_x0) row_j.tail(n) = dx.transpose();
+    if (meas[m].drift_param >= 0) G.row(k) += ((r - mean_r[m]) * (row_j - mean_j[m])).transpose();
+    else G.row(k) += (r * row_j).transpose();
   });
   return G;
 }

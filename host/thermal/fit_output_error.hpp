@@ -98,9 +98,10 @@ class OutputErrorEvaluator {
   };
   using Key = std::tuple<double, unsigned, double>;  // speed, event state, dt
   static Key key_of(const Run& run, std::size_t k);
-  // Simulates run ri with its forward sensitivities; calls sink(row within the run, residual,
-  // d residual / d params (1 x nf), d residual / d x0 (1 x n)) for every measured cell (the
-  // derivatives only meaningful when with_jacobian).
+  // Simulates run ri with its forward sensitivities; calls sink(row within the run, measurement
+  // index, residual, d residual / d params (1 x nf), d residual / d x0 (1 x n)) for every measured
+  // cell (the derivatives only meaningful when with_jacobian). A drifting measurement's residual
+  // still holds its per-recording offset: the callers eliminate it.
   template <class Sink>
   void simulate_run(std::size_t ri, bool with_jacobian, Sink&& sink) const;
   void evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const;

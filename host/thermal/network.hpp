@@ -114,7 +114,10 @@ struct Node {
 struct Measurement {
   std::string column;           // recording channel name, e.g. "T1"
   int node = 0;
-  int drift_param = -1;         // K/h: the probe reads this x hours since the recording's first sample too high; -1 = none
+  // K/h: the probe reads this x hours since the recording's first sample too high, plus an offset
+  // per recording that nothing tells (how long it drifted before): fitted and evaluated as a
+  // nuisance constant per recording, like the initial state; -1 = none
+  int drift_param = -1;
 };
 
 struct Network {

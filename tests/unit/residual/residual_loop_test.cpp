@@ -53,7 +53,7 @@ class ResidualLoopFamily : public ::testing::TestWithParam<FamilyCase> {};
 // Not met yet (reported as skipped with the reason, not hidden): sensor_drift_T1 (the staged base fit lands in a
 // wrong basin on a drifting probe and the screening then proposes the drift on T2) and
 // second_boundary_housing (the joint refit stops at 0.04 K, x2.7, not at the noise).
-bool not_met_yet(const std::string& name) { return name == "sensor_drift_T1" || name == "second_boundary_housing"; }
+bool not_met_yet(const std::string& name) { return std::getenv("BTSM_RUN_NOT_MET") == nullptr && (name == "sensor_drift_T1" || name == "second_boundary_housing"); }
 
 TEST_P(ResidualLoopFamily, IsProposedFittedBackNamedAndCutsTheCheckError) {
   const FamilyCase& fc = GetParam();
