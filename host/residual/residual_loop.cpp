@@ -76,6 +76,7 @@ class ResidualLoop {
     propose_candidates();
     refit_candidates();
     repolish_base();
+    rescreen_on_repolished_base();
     prune_weak_nodes_before_deciding();
     decide();
     prune_chosen_on_check();
@@ -336,7 +337,8 @@ class ResidualLoop {
     ctx.base = &base_;
     ctx.base_params = bp_;
     ctx.fit = &fit_;
-    for (const auto& r : fit_) fit_refit_.push_back(decimated(r, o_.refit_step_s));
+    if (fit_refit_.empty())
+      for (const auto& r : fit_) fit_refit_.push_back(decimated(r, o_.refit_step_s));
     ctx.fit_refit = &fit_refit_;
     ctx.check = &check_;
     ctx.measured_fit = meas_fit_;
@@ -400,6 +402,7 @@ class ResidualLoop {
                     L_.before_fit.rmse_k));
     if (!(rss_new < 0.99 * rss_old)) return;
     say("residual: the base model is replaced by that better minimum; every candidate is judged against it");
+    base_rms_before_repolish_ = L_.before_fit.rmse_k;
     bp_ = f.params;
     bx0_ = f.initial_states;
     L_.base_fit.params = bp_;
@@ -421,6 +424,39 @@ class ResidualLoop {
       c.delta_bic = base_bic_ - c.bic;
       c.check_factor = c.check.rmse_k > 0 ? L_.before_check.rmse_k / c.check.rmse_k : 0;
     }
+  }
+
+  // Stage 6b': when the re-polished base is far better than the base fit (its rms at most half),
+  // the base fit was in a wrong basin (one distorted probe can drag the staged fit there) and the
+  // screening ran on a linearisation about the wrong model: what it proposed, and where, may be
+  // wrong. So the dictionary is screened again about the better base, and its best proposals not
+  // fitted yet are refitted jointly from it (their evidence against the same, better base).
+  void rescreen_on_repolished_base() {
+    if (!L_.base_repolished || !(L_.before_fit.rmse_k <= 0.5 * base_rms_before_repolish_)) return;
+    say(fmt::format("residual: the re-polished base ({:.4g} K) is far below the base fit ({:.4g} K): screening again about it",
+                    L_.before_fit.rmse_k, base_rms_before_repolish_));
+    propose_candidates();
+    ctx_.base_params = bp_;
+    ctx_.base_bic = base_bic_;
+    ctx_.before_check = L_.before_check;
+    int fitted = 0;
+    for (const Proposal& p : L_.screening.proposals) {
+      if (fitted >= o_.max_candidates) break;
+      const std::string label = effect_label(p.spec, base_);
+      bool done = false;
+      for (auto& c : L_.candidates) {
+        if (c.label != label || c.variant != p.variant) continue;
+        done = c.status == "fitted" || c.status == "refused";
+        if (c.status == "not fitted") c.status = "superseded";  // refitted below
+      }
+      ++fitted;
+      if (done) continue;
+      say(fmt::format("residual: refitting {} ({}) jointly with the re-polished base", label, p.variant));
+      L_.candidates.push_back(refit_candidate(ctx_, p));
+    }
+    L_.candidates.erase(std::remove_if(L_.candidates.begin(), L_.candidates.end(),
+                                       [](const CandidateResult& c) { return c.status == "superseded"; }),
+                        L_.candidates.end());
   }
 
   // Stage 6c: a candidate that passes BIC and the check but has a node its data cannot support
@@ -741,6 +777,7 @@ class ResidualLoop {
   std::vector<int> free_params_, held_;
   double base_bic_ = 0;
   bool all_white_ = true, something_to_explain_ = false, ambient_refused_ = false, unprobed_tried_ = false;
+  double base_rms_before_repolish_ = 0;  // K, the base fit's rms on the fit recordings when repolish_base() replaced it
   std::vector<Eigen::MatrixXd> meas_fit_, meas_check_, nodes_fit_, nodes_check_;
   std::vector<std::string> boundaries_, events_, usable_boundaries_, usable_events_;
   std::vector<th::Recording> fit_refit_;
