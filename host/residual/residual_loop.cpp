@@ -430,7 +430,8 @@ class ResidualLoop {
   // the base fit was in a wrong basin (one distorted probe can drag the staged fit there) and the
   // screening ran on a linearisation about the wrong model: what it proposed, and where, may be
   // wrong. So the dictionary is screened again about the better base, and its best proposals not
-  // fitted yet are refitted jointly from it (their evidence against the same, better base).
+  // fitted yet, or fitted to an error above that base's, are refitted jointly from it (their
+  // evidence against the same, better base).
   void rescreen_on_repolished_base() {
     if (!L_.base_repolished || !(L_.before_fit.rmse_k <= 0.5 * base_rms_before_repolish_)) return;
     say(fmt::format("residual: the re-polished base ({:.4g} K) is far below the base fit ({:.4g} K): screening again about it",
@@ -446,8 +447,10 @@ class ResidualLoop {
       bool done = false;
       for (auto& c : L_.candidates) {
         if (c.label != label || c.variant != p.variant) continue;
-        done = c.status == "fitted" || c.status == "refused";
-        if (c.status == "not fitted") c.status = "superseded";  // refitted below
+        // a refit that ended above the re-polished base (it started about the wrong one) is redone
+        const bool stuck = c.status == "fitted" && !(c.fit.rmse_k < L_.before_fit.rmse_k);
+        done = (c.status == "fitted" && !stuck) || c.status == "refused";
+        if (c.status == "not fitted" || stuck) c.status = "superseded";  // refitted below
       }
       ++fitted;
       if (done) continue;
