@@ -139,6 +139,11 @@ void register_residual_commands(CLI::App& app) {
   cmd->add_option("--max-candidates", a->opts.max_candidates, "Proposals refitted jointly, best screening score first (default 4)");
   cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations of each start's effect-only stage (default 60)");
   cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations of each joint refit and of the base fit (default 300)");
+  cmd->add_option("--refit-step", a->opts.refit_step_s,
+                  "Step [s] of the decimated fit recordings the candidate refits run on; the chosen one is polished at full rate (default 10)")
+      ->check(CLI::PositiveNumber);
+  cmd->add_option("--threads", a->opts.threads,
+                  "Independent refits run at once (default 0 = the machine's cores; the result does not depend on it)");
   cmd->add_option("--trace-step", a->opts.trace_step_s, "Step of the unexplained-heat trace [s] (default max(60 s, 10 samples))");
   cmd->add_option("--report", a->report_dir, "Write residual_result.json, residual_table.txt and plots (PNG + SVG) here")
       ->transform([](std::string dir) {  // "dir/" printed "dir//file"

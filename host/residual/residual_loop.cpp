@@ -2,6 +2,7 @@
 #include "host/residual/residual_loop.hpp"
 
 #include "host/residual/candidate_fit.hpp"
+#include "host/residual/parallel_tasks.hpp"
 #include "host/residual/residual_tests.hpp"
 #include "host/thermal/column_map.hpp"
 #include "host/thermal/declared_columns.hpp"
@@ -351,19 +352,29 @@ class ResidualLoop {
     ctx.joint_iterations = o_.refine_iterations;
     ctx.param_z = o_.param_z;
     ctx.progress = o_.progress;
-    int fitted = 0;
-    for (const Proposal& p : L_.screening.proposals) {
-      if (fitted >= o_.max_candidates) {
-        CandidateResult c = candidate_of(p, base_);
-        c.status = "not fitted";
-        c.reason = fmt::format("screening score {:.0f} below the {} best proposals", p.score, o_.max_candidates);
-        L_.candidates.push_back(c);
-        continue;
-      }
-      ++fitted;
-      say(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(p.spec, base_), p.variant));
-      L_.candidates.push_back(refit_candidate(ctx, p));
+    const auto& proposals = L_.screening.proposals;
+    const std::size_t fitted = std::min<std::size_t>(proposals.size(), static_cast<std::size_t>(std::max(o_.max_candidates, 0)));
+    for (CandidateResult& c : refit_in_parallel({proposals.begin(), proposals.begin() + static_cast<std::ptrdiff_t>(fitted)}))
+      L_.candidates.push_back(std::move(c));
+    for (std::size_t i = fitted; i < proposals.size(); ++i) {
+      CandidateResult c = candidate_of(proposals[i], base_);
+      c.status = "not fitted";
+      c.reason = fmt::format("screening score {:.0f} below the {} best proposals", proposals[i].score, o_.max_candidates);
+      L_.candidates.push_back(c);
     }
+  }
+
+  // The proposals refitted side by side (each from ctx_ alone: the results are those of a
+  // sequential run), in the proposals' order.
+  std::vector<CandidateResult> refit_in_parallel(const std::vector<Proposal>& ps) {
+    std::vector<CandidateResult> out(ps.size());
+    run_tasks(ps.size(), o_.threads, o_.progress, [&](std::size_t i, const ProgressFn& say_i) {
+      CandidateContext ctx = ctx_;
+      ctx.progress = say_i;
+      if (say_i) say_i(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(ps[i].spec, base_), ps[i].variant));
+      out[i] = refit_candidate(ctx, ps[i]);
+    });
+    return out;
   }
 
   // Stage 6b: a joint refit can land the BASE parameters in a better minimum than the base fit
@@ -468,15 +479,21 @@ class ResidualLoop {
   void prune_weak_nodes_before_deciding() {
     ctx_.base_bic = base_bic_;  // the base may have been re-polished since the refits
     ctx_.before_check = L_.before_check;
-    for (auto& c : L_.candidates) {
+    std::vector<std::size_t> weak;
+    for (std::size_t i = 0; i < L_.candidates.size(); ++i) {
+      const auto& c = L_.candidates[i];
       if (c.status != "fitted" || c.delta_bic < o_.bic_margin || c.check_factor < o_.check_improvement) continue;
-      if (weakest_node(ctx_, c) < 0) continue;
-      try {
-        prune_weak_nodes(ctx_, c);
-      } catch (const std::exception& e) {
-        say(std::string("residual: refit with fewer nodes failed: ") + e.what());
-      }
+      if (weakest_node(ctx_, c) >= 0) weak.push_back(i);
     }
+    run_tasks(weak.size(), o_.threads, o_.progress, [&](std::size_t k, const ProgressFn& say_k) {
+      CandidateContext ctx = ctx_;
+      ctx.progress = say_k;
+      try {
+        prune_weak_nodes(ctx, L_.candidates[weak[k]]);
+      } catch (const std::exception& e) {
+        if (say_k) say_k(std::string("residual: refit with fewer nodes failed: ") + e.what());
+      }
+    });
   }
 
   // Stage 7a: the chosen effect names only the nodes the held-out part needs. A node whose
@@ -493,17 +510,25 @@ class ResidualLoop {
       if (c.spec.nodes.size() < 2) break;
       int best = -1;
       CandidateResult best_r;
-      for (std::size_t i = 0; i < c.spec.nodes.size(); ++i) {
+      std::vector<CandidateResult> without(c.spec.nodes.size());
+      std::vector<bool> ok(c.spec.nodes.size(), false);
+      run_tasks(c.spec.nodes.size(), o_.threads, o_.progress, [&](std::size_t i, const ProgressFn& say_i) {
         try {
-          CandidateResult r = refit_fewer_nodes(ctx_, c, i);
-          say(fmt::format("residual: {} without {}: check {:.4g} K (with it {:.4g} K)", c.label,
-                          base_.nodes[static_cast<std::size_t>(c.spec.nodes[i])].name, r.check.rmse_k, c.check.rmse_k));
-          if (r.check.rmse_k <= 1.1 * c.check.rmse_k && (best < 0 || r.check.rmse_k < best_r.check.rmse_k)) {
-            best = static_cast<int>(i);
-            best_r = std::move(r);
-          }
+          without[i] = refit_fewer_nodes(ctx_, c, i);
+          ok[i] = true;
+          if (say_i)
+            say_i(fmt::format("residual: {} without {}: check {:.4g} K (with it {:.4g} K)", c.label,
+                              base_.nodes[static_cast<std::size_t>(c.spec.nodes[i])].name, without[i].check.rmse_k, c.check.rmse_k));
         } catch (const std::exception& e) {
-          say(std::string("residual: refit with fewer nodes failed: ") + e.what());
+          if (say_i) say_i(std::string("residual: refit with fewer nodes failed: ") + e.what());
+        }
+      });
+      for (std::size_t i = 0; i < c.spec.nodes.size(); ++i) {
+        if (!ok[i]) continue;
+        CandidateResult& r = without[i];
+        if (r.check.rmse_k <= 1.1 * c.check.rmse_k && (best < 0 || r.check.rmse_k < best_r.check.rmse_k)) {
+          best = static_cast<int>(i);
+          best_r = std::move(r);
         }
       }
       if (best < 0) break;
@@ -612,6 +637,7 @@ class ResidualLoop {
     ctx_.base_bic = base_bic_;
     ctx_.before_check = L_.before_check;
     int fitted = 0;
+    std::vector<Proposal> rivals;
     for (int n : unprobed)
       for (double e : {1.0, 2.0}) {
         Proposal p;
@@ -620,11 +646,12 @@ class ResidualLoop {
         p.spec.speed_exponent = e;
         p.coefficients = {0.0};
         p.variant = fmt::format("(w/w0)^{:g} while running, {}", e, why);
-        say(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(p.spec, base_), p.variant));
-        CandidateResult c = refit_candidate(ctx_, p);
-        if (c.status == "fitted") ++fitted;
-        L_.candidates.push_back(std::move(c));
+        rivals.push_back(std::move(p));
       }
+    for (CandidateResult& c : refit_in_parallel(rivals)) {
+      if (c.status == "fitted") ++fitted;
+      L_.candidates.push_back(std::move(c));
+    }
     return fitted;
   }
 

@@ -60,6 +60,7 @@ struct LoopOptions {
   int max_iterations = 60;              // Levenberg-Marquardt iterations of the effect-only start stage
   int refine_iterations = 300;          // ... of each joint refit (and the base fit's budget)
   double refit_step_s = 10;             // s, the refits run on the fit recordings decimated to this step
+  unsigned threads = 0;                 // independent refits run at once (0 = the machine's cores); the result does not depend on it
   ScreeningOptions screening;
   std::function<void(const std::string&)> progress;
 };

@@ -377,6 +377,18 @@ double estimate_noise_sigma(const Eigen::MatrixXd& measured) {
       for (double v : d2) ss += v * v;
       s = std::sqrt(ss / d2.size() / 6.0);
     }
+    // A reading quantised to q cannot be known better than q / sqrt(12) (the rms of the rounding).
+    // Where the noise is below q most second differences are 0 up to round-off, and the MAD
+    // collapses to ~1e-15 K (seen on 1 mK logs); the decision's noise thresholds would then
+    // call any residual significant. q = the smallest step between consecutive samples (a step
+    // below 1e-9 of the value is round-off of the decimal text, not a reading step).
+    double q = std::numeric_limits<double>::infinity();
+    for (int k = 1; k < measured.rows(); ++k) {
+      const double a = measured(k - 1, c), b = measured(k, c);
+      const double d = std::abs(b - a);
+      if (std::isfinite(d) && d > 1e-9 * std::max(1.0, std::abs(b))) q = std::min(q, d);
+    }
+    if (std::isfinite(q)) s = std::max(s, q / std::sqrt(12.0));
     if (s > 0) per_channel.push_back(s);
   }
   if (per_channel.empty()) throw std::invalid_argument("cannot estimate the noise level: no channel with 10 consecutive samples (give it explicitly)");

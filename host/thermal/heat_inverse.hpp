@@ -129,7 +129,9 @@ InverseProblem make_inverse_problem(const Network& net, const Eigen::VectorXd& p
 std::vector<std::string> measured_columns(const Network& net, const Recording& rec);
 
 // Robust per-problem noise estimate: MAD of second differences of each channel / sqrt(6), pooled
-// (median over channels). Steps and kinks in the signal barely move it.
+// (median over channels). Steps and kinks in the signal barely move it. A channel's estimate is
+// never below its quantisation's rms, q / sqrt(12) (q = its smallest step between samples): on a
+// reading quantised coarser than its noise the MAD collapses to round-off.
 double estimate_noise_sigma(const Eigen::MatrixXd& measured);
 
 // Solve for a given alpha (no alpha selection). Linear in N.

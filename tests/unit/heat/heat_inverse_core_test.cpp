@@ -153,6 +153,29 @@ TEST(HeatInverse, NoiseEstimateIgnoresSmoothSignalAndSteps) {
   EXPECT_NEAR(estimate_noise_sigma(y), 0.02, 0.002);
 }
 
+// A 1 mK logger with noise well below its step: most second differences are 0 up to the round-off
+// of the decimal values, and the MAD alone gives ~1e-15 K (seen on the effect suite's recordings).
+// The estimate is floored at the rounding's rms, 1 mK / sqrt(12) = 0.29 mK.
+TEST(HeatInverse, NoiseEstimateIsNotBelowTheQuantisation) {
+  std::mt19937 rng(11);
+  std::normal_distribution<double> noise(0.0, 0.0001);
+  Eigen::MatrixXd y(3000, 2);
+  for (int k = 0; k < y.rows(); ++k) {
+    // slow warm-ups, rounded to 1 mK as the logger's CSV stores them
+    const double t0 = 28.3 + 0.4 * (1 - std::exp(-k / 900.0)) + noise(rng);
+    const double t1 = 19.2 + 0.0002 * k + noise(rng);
+    y(k, 0) = std::round(t0 * 1000) / 1000;
+    y(k, 1) = std::round(t1 * 1000) / 1000;
+  }
+  const double s = estimate_noise_sigma(y);
+  EXPECT_GE(s, 0.001 / std::sqrt(12.0) * 0.999);
+  EXPECT_LT(s, 0.0006);
+  // the floor does not lift a noise that is above the quantisation
+  std::normal_distribution<double> big(0.0, 0.01);
+  for (int k = 0; k < y.rows(); ++k) y(k, 0) = std::round((30 + big(rng)) * 1000) / 1000, y(k, 1) = std::round((20 + big(rng)) * 1000) / 1000;
+  EXPECT_NEAR(estimate_noise_sigma(y), 0.01, 0.001);
+}
+
 TEST(HeatInverse, BadInputIsRejectedWithAReason) {
   InverseProblem p = make_problem(50, 5.0, 0.01, 1, false);
   HeatInverseOptions o = cn_options(TikhonovOrder::One);
