@@ -296,36 +296,65 @@ void start_unreached_from_peers(const Network& net, const std::vector<int>& want
                                 double sum_c, Eigen::VectorXd& p, std::vector<std::string>& warnings) {
   const auto unit_of = [&](int j) -> const std::string& { return net.params[static_cast<std::size_t>(j)].unit; };
   const int np = static_cast<int>(net.params.size());
+  // The geometric mean of the other parameters of i's unit that have a positive value.
+  const auto peer_mean = [&](int i) {
+    double log_sum = 0;
+    int n = 0;
+    for (int j = 0; j < np; ++j)
+      if (j != i && unit_of(j) == unit_of(i) && std::isfinite(p[j]) && p[j] > 0) {
+        log_sum += std::log(p[j]);
+        ++n;
+      }
+    return n > 0 ? std::exp(log_sum / n) : std::numeric_limits<double>::quiet_NaN();
+  };
+  // The parameters still to start: a capacitance among them is not a known part of the gauge.
+  std::vector<int> pending;
+  for (int i : wanted)
+    if (std::find(got.begin(), got.end(), i) == got.end()) pending.push_back(i);
+  const auto is_pending = [&](int j) { return std::find(pending.begin(), pending.end(), j) != pending.end(); };
   for (int i : wanted) {
-    if (std::find(got.begin(), got.end(), i) != got.end()) continue;
+    if (!is_pending(i)) continue;
     const auto& par = net.params[static_cast<std::size_t>(i)];
+    // A value on entry is what the equation-error solve left when its passes ended with other
+    // parameters still failing: not confirmed by the data, so it is replaced like a missing one.
+    const std::string why = std::isfinite(p[i])
+                                ? "the equation-error solve left it unsettled: parameters kept coming out non-positive, as "
+                                  "when the heat balances disagree between recordings (a drifting probe) or terms are collinear"
+                                : "its nodes are not measured";
     double start = std::numeric_limits<double>::quiet_NaN();
+    std::string from = "from its peers";
     if (par.unit == "J/K" && std::isfinite(sum_c)) {
       double known = 0;
       int unknown = 0;
       for (int j = 0; j < np; ++j)
         if (unit_of(j) == "J/K") {
-          if (std::isfinite(p[j])) known += p[j];
+          if (std::isfinite(p[j]) && !is_pending(j)) known += p[j];
           else ++unknown;
         }
       if (unknown > 0 && sum_c > known) start = (sum_c - known) / unknown;
+      if (std::isfinite(p[i])) from = "as an equal share of what the settled capacitances leave of the gauge";
     } else {
-      double log_sum = 0;
-      int n = 0;
-      for (int j = 0; j < np; ++j)
-        if (j != i && unit_of(j) == par.unit && std::isfinite(p[j]) && p[j] > 0) {
-          log_sum += std::log(p[j]);
-          ++n;
-        }
-      if (n > 0) start = std::exp(log_sum / n);
+      start = peer_mean(i);
     }
-    if (!std::isfinite(start))
-      throw std::invalid_argument("fit: could not start '" + par.name +
-                                  "' from the cooling data (its nodes are not measured there) and no started parameter "
-                                  "shares its unit; give an initial value");
+    // Fallbacks where the rule above has nothing to share out (the capacitance gauge already used
+    // up by the others, no peer started): the geometric mean of the parameters of its unit, then
+    // the network's nominal (design) value. Either only starts the output-error stages that follow.
+    if (!std::isfinite(start) || start <= 0) {
+      start = peer_mean(i);
+      from = "at the geometric mean of the other " + par.unit + " parameters";
+    }
+    if ((!std::isfinite(start) || start <= 0) && std::isfinite(par.nominal) && par.nominal > 0) {
+      start = par.nominal;
+      from = "at the network's nominal value";
+    }
+    if (!std::isfinite(start) || start <= 0)
+      throw std::invalid_argument("fit: could not start '" + par.name + "' (" + par.unit + ") from the data: " + why +
+                                  "; no other parameter of unit " + par.unit +
+                                  " was started and the network gives it no nominal value; give an initial value");
     p[i] = std::clamp(start, par.min, par.max);
-    warnings.push_back("'" + par.name + "' could not be started from the data (its nodes are not measured): started at " +
-                       fmt_double(p[i]) + " " + par.unit + " from its peers; its estimate rests on the output-error fit alone");
+    pending.erase(std::find(pending.begin(), pending.end(), i));
+    warnings.push_back("'" + par.name + "' could not be started from the data (" + why + "): started at " +
+                       fmt_double(p[i]) + " " + par.unit + " " + from + "; its estimate rests on the output-error fit alone");
   }
 }
 

@@ -52,6 +52,12 @@ bool fill_unmeasured_from_neighbours(const Network& net, Eigen::MatrixXd& temps)
 // geometric mean of the started parameters of the same unit (a capacitance: an equal share of what
 // the capacitance gauge leaves), and the output-error stages that follow fit it like any other. The
 // fit says so in its warnings, because such a parameter's estimate rests on the output error alone.
+// The same holds for a parameter the equation-error solve left unsettled (a value in p on entry but
+// not in `got`: its passes ended with others still non-positive, as when a drifting probe makes the
+// cooling heat balances of one node disagree between recordings); that value is not trusted.
+// Where the rule has nothing to share out (the gauge used up, no started peer) the start falls
+// back to the geometric mean of the parameters of its unit, then to the network's nominal value;
+// only without either does it throw, naming the parameter.
 void start_unreached_from_peers(const Network& net, const std::vector<int>& wanted, const std::vector<int>& got,
                                 double sum_c, Eigen::VectorXd& p, std::vector<std::string>& warnings);
 
