@@ -2,6 +2,7 @@
 #include "host/residual/residual_loop.hpp"
 
 #include "host/residual/candidate_fit.hpp"
+#include "host/residual/claim_lead.hpp"
 #include "host/residual/parallel_tasks.hpp"
 #include "host/residual/residual_tests.hpp"
 #include "host/thermal/column_map.hpp"
@@ -715,6 +716,9 @@ class ResidualLoop {
       if (c.status == "effect" && better(best_effect)) best_effect = static_cast<int>(i);
       if (c.status == "partial" && better(best_partial)) best_partial = static_cast<int>(i);
     }
+    for (const NotToldApart& d : keep_claims_with_a_lead(L_.candidates, best_effect, o_.bic_margin, o_.check_improvement))
+      say("residual: " + L_.candidates[static_cast<std::size_t>(d.claim)].label + " not claimed: " +
+          L_.candidates[static_cast<std::size_t>(d.rival)].label + " explains the held-out part better; the two are not told apart");
     L_.fit_resid_after = L_.fit_resid_before;
     L_.check_resid_after = L_.check_resid_before;
     L_.check_model_after = L_.check_model_before;
