@@ -88,11 +88,12 @@ TEST(EffectTerms, DrivenHeatIsSimulatedExactlyThoughGIsNotSymmetric) {
   EXPECT_LT(poles_per_s(net, p, 2000.0).maxCoeff(), 0.0);
 }
 
-TEST(EffectTerms, FitRecoversDrivenHeatAndProbeDrift) {
-  const Network net = network_from_json(nlohmann::json::parse(kDriven), "row.json");
-  const Eigen::VectorXd truth = default_parameters(net);
+// Two recordings of the driven row (the second with its speeds mirrored), white noise, and probe 1
+// drifting at the truth's d K/h from offset[r] at the recording's first sample.
+std::vector<Recording> drifting_probe_recordings(const Network& net, const Eigen::VectorXd& truth, const double (&offset)[2],
+                                                 unsigned seed) {
   std::vector<Recording> recs;
-  std::mt19937 rng(7);
+  std::mt19937 rng(seed);
   std::normal_distribution<double> noise(0.0, 0.005);
   for (int r = 0; r < 2; ++r) {
     Recording rec = row_recording(1200, 20.0);
@@ -101,9 +102,16 @@ TEST(EffectTerms, FitRecoversDrivenHeatAndProbeDrift) {
     const Eigen::MatrixXd x = simulate_recording(net, truth, rec, Eigen::VectorXd::Constant(3, 20.0));
     for (int c = 0; c < 3; ++c)
       for (Eigen::Index k = 0; k < x.rows(); ++k) rec.temp_c(k, c) = x(k, c) + noise(rng);
-    for (Eigen::Index k = 0; k < x.rows(); ++k) rec.temp_c(k, 1) += truth[net.param_index("d")] * rec.time_s[static_cast<std::size_t>(k)] / 3600.0;
+    for (Eigen::Index k = 0; k < x.rows(); ++k)
+      rec.temp_c(k, 1) += offset[r] + truth[net.param_index("d")] * rec.time_s[static_cast<std::size_t>(k)] / 3600.0;
     recs.push_back(rec);
   }
+  return recs;
+}
+
+// Output-error fit from a start without the driven heat and the drift and 30 % off in Rbc; it must
+// end at the noise with g, d and Rbc within 3 sigma of the truth.
+FitResult fit_driven_heat_and_drift(const Network& net, const Eigen::VectorXd& truth, const std::vector<Recording>& recs) {
   FitOptions o;
   o.staged = false;
   o.max_iterations = 200;
@@ -112,12 +120,20 @@ TEST(EffectTerms, FitRecoversDrivenHeatAndProbeDrift) {
   start[net.param_index("d")] = 0.0;
   start[net.param_index("Rbc")] *= 1.3;
   o.start = start;
-  const FitResult f = fit_network(net, recs, o);
+  FitResult f = fit_network(net, recs, o);
   EXPECT_NEAR(f.rms_K, 0.005, 0.0005);
   for (const char* name : {"g", "d", "Rbc"}) {
     const int i = net.param_index(name);
     EXPECT_NEAR(f.params[i], truth[i], 3 * f.estimates[static_cast<std::size_t>(i)].sigma + 1e-9) << name;
   }
+  return f;
+}
+
+TEST(EffectTerms, FitRecoversDrivenHeatAndProbeDrift) {
+  const Network net = network_from_json(nlohmann::json::parse(kDriven), "row.json");
+  const Eigen::VectorXd truth = default_parameters(net);
+  const std::vector<Recording> recs = drifting_probe_recordings(net, truth, {0.0, 0.0}, 7);
+  const FitResult f = fit_driven_heat_and_drift(net, truth, recs);
   // the residuals the loop and validate see include the drift
   const Eigen::MatrixXd r = prediction_residuals(net, f.params, recs[0], f.initial_states[0]);
   EXPECT_LT(std::sqrt(r.col(1).squaredNorm() / static_cast<double>(r.rows())), 0.007);
@@ -130,35 +146,8 @@ TEST(EffectTerms, FitRecoversDrivenHeatAndProbeDrift) {
 TEST(EffectTerms, ProbeDriftWithAnUnknownOffsetPerRecording) {
   const Network net = network_from_json(nlohmann::json::parse(kDriven), "row.json");
   const Eigen::VectorXd truth = default_parameters(net);
-  std::vector<Recording> recs;
-  std::mt19937 rng(11);
-  std::normal_distribution<double> noise(0.0, 0.005);
-  const double offset[2] = {-0.3, 0.8};
-  for (int r = 0; r < 2; ++r) {
-    Recording rec = row_recording(1200, 20.0);
-    if (r == 1)
-      for (auto& w : rec.speed_rpm) w = w > 0 ? 3000.0 - w : 0.0;
-    const Eigen::MatrixXd x = simulate_recording(net, truth, rec, Eigen::VectorXd::Constant(3, 20.0));
-    for (int c = 0; c < 3; ++c)
-      for (Eigen::Index k = 0; k < x.rows(); ++k) rec.temp_c(k, c) = x(k, c) + noise(rng);
-    for (Eigen::Index k = 0; k < x.rows(); ++k)
-      rec.temp_c(k, 1) += offset[r] + truth[net.param_index("d")] * rec.time_s[static_cast<std::size_t>(k)] / 3600.0;
-    recs.push_back(rec);
-  }
-  FitOptions o;
-  o.staged = false;
-  o.max_iterations = 200;
-  Eigen::VectorXd start = truth;
-  start[net.param_index("g")] = 0.0;
-  start[net.param_index("d")] = 0.0;
-  start[net.param_index("Rbc")] *= 1.3;
-  o.start = start;
-  const FitResult f = fit_network(net, recs, o);
-  EXPECT_NEAR(f.rms_K, 0.005, 0.0005);
-  for (const char* name : {"g", "d", "Rbc"}) {
-    const int i = net.param_index(name);
-    EXPECT_NEAR(f.params[i], truth[i], 3 * f.estimates[static_cast<std::size_t>(i)].sigma + 1e-9) << name;
-  }
+  const std::vector<Recording> recs = drifting_probe_recordings(net, truth, {-0.3, 0.8}, 11);
+  const FitResult f = fit_driven_heat_and_drift(net, truth, recs);
   for (int r = 0; r < 2; ++r) {
     const Eigen::MatrixXd res = prediction_residuals(net, f.params, recs[static_cast<std::size_t>(r)], f.initial_states[static_cast<std::size_t>(r)]);
     EXPECT_LT(std::sqrt(res.col(1).squaredNorm() / static_cast<double>(res.rows())), 0.007) << "recording " << r;
