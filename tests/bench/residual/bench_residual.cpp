@@ -5,6 +5,7 @@
 // refit depends on its own inputs only).
 // Data: tests/data/tnm-reference by default; or suite case directories (truth.json lists the runs
 // and their use, as `btsm effect-suite` writes them) given as arguments.
+#include "tests/bench/load_average.hpp"
 #include "host/residual/residual_loop.hpp"
 #include "host/thermal/column_map.hpp"
 #include "host/thermal/network.hpp"
@@ -30,15 +31,6 @@ double cpu_s() {
   timespec t{};
   clock_gettime(CLOCK_PROCESS_CPUTIME_ID, &t);
   return static_cast<double>(t.tv_sec) + 1e-9 * static_cast<double>(t.tv_nsec);
-}
-// Other jobs on the shared machine stretch the wall time: the load is printed beside it.
-double load_average_1min() {
-  double l = -1;
-  if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
-    if (std::fscanf(f, "%lf", &l) != 1) l = -1;
-    std::fclose(f);
-  }
-  return l;
 }
 
 struct Case {
@@ -81,7 +73,7 @@ Timed run(const Case& c, unsigned threads) {
   rs::LoopOptions o;
   o.threads = threads;
   Timed t;
-  t.load = load_average_1min();
+  t.load = btsm::bench::load_average_1min();
   const double w0 = now_s(), c0 = cpu_s();
   t.r = rs::run_residual_loop(net, Eigen::VectorXd(), c.fit, c.check, o);
   t.wall = now_s() - w0;

@@ -2,6 +2,7 @@
 // time, as ratios to the baseline measured with the Octave (lsqnonlin + SLICOT) toolchain on a
 // 2-core machine (docs/sysid-notes: whole pipeline 30 s, cooling-first fit alone 5 s). The
 // baseline cannot be re-run here (no Octave), so it is quoted; everything else is measured.
+#include "tests/bench/load_average.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/reduce.hpp"
 #include "host/thermal/validate.hpp"
@@ -18,16 +19,6 @@ using namespace btsm::thermal;
 namespace {
 double now_s() { return std::chrono::duration<double>(std::chrono::steady_clock::now().time_since_epoch()).count(); }
 double cpu_s() { return static_cast<double>(std::clock()) / CLOCKS_PER_SEC; }
-// The 1-minute load average: on the shared 2-core machine other jobs stretch the wall time, so the
-// figure is printed beside it (CPU time is the part that does not depend on them).
-double load_average_1min() {
-  double l = -1;
-  if (std::FILE* f = std::fopen("/proc/loadavg", "r")) {
-    if (std::fscanf(f, "%lf", &l) != 1) l = -1;
-    std::fclose(f);
-  }
-  return l;
-}
 long peak_rss_kb() {
   rusage u{};
   getrusage(RUSAGE_SELF, &u);
@@ -46,7 +37,7 @@ int main() {
   const Network net = preset_network("spindle4");
   FitOptions o;
   o.sum_capacitance_J_per_K = 20478.7;
-  const double load_before_fit = load_average_1min();
+  const double load_before_fit = btsm::bench::load_average_1min();
   t0 = now_s();
   const double c0 = cpu_s();
   const FitResult fit = fit_network(net, recs, o);
