@@ -367,12 +367,12 @@ class ResidualLoop {
 
   // The proposals refitted side by side (each from ctx_ alone: the results are those of a
   // sequential run), in the proposals' order.
-  std::vector<CandidateResult> refit_in_parallel(const std::vector<Proposal>& ps) {
+  std::vector<CandidateResult> refit_in_parallel(const std::vector<Proposal>& ps, const char* base_name = "the base") {
     std::vector<CandidateResult> out(ps.size());
     run_tasks(ps.size(), o_.threads, o_.progress, [&](std::size_t i, const ProgressFn& say_i) {
       CandidateContext ctx = ctx_;
       ctx.progress = say_i;
-      if (say_i) say_i(fmt::format("residual: refitting {} ({}) jointly with the base", effect_label(ps[i].spec, base_), ps[i].variant));
+      if (say_i) say_i(fmt::format("residual: refitting {} ({}) jointly with {}", effect_label(ps[i].spec, base_), ps[i].variant, base_name));
       out[i] = refit_candidate(ctx, ps[i]);
     });
     return out;
@@ -453,6 +453,7 @@ class ResidualLoop {
     ctx_.base_bic = base_bic_;
     ctx_.before_check = L_.before_check;
     int fitted = 0;
+    std::vector<Proposal> todo;
     for (const Proposal& p : L_.screening.proposals) {
       if (fitted >= o_.max_candidates) break;
       const std::string label = effect_label(p.spec, base_);
@@ -465,10 +466,9 @@ class ResidualLoop {
         if (c.status == "not fitted" || stuck) c.status = "superseded";  // refitted below
       }
       ++fitted;
-      if (done) continue;
-      say(fmt::format("residual: refitting {} ({}) jointly with the re-polished base", label, p.variant));
-      L_.candidates.push_back(refit_candidate(ctx_, p));
+      if (!done) todo.push_back(p);
     }
+    for (CandidateResult& c : refit_in_parallel(todo, "the re-polished base")) L_.candidates.push_back(std::move(c));
     L_.candidates.erase(std::remove_if(L_.candidates.begin(), L_.candidates.end(),
                                        [](const CandidateResult& c) { return c.status == "superseded"; }),
                         L_.candidates.end());
