@@ -156,10 +156,25 @@ void draw_markers(cairo_t* cr, const Plot& p, const PanelLayout& l) {
   }
 }
 
+void draw_spans(cairo_t* cr, const PanelLayout& l) {
+  for (size_t i = 0; i < l.span_boxes.size(); ++i) {
+    const Rect& r = l.span_boxes[i];
+    if (!(r.w > 0)) continue;
+    const Rgb c = l.span_colour[i];
+    cairo_set_source_rgba(cr, c.r, c.g, c.b, kSpanAlpha);
+    cairo_rectangle(cr, r.x, r.y, r.w, r.h);
+    cairo_fill(cr);
+  }
+}
+
 void draw_legend(cairo_t* cr, const PanelLayout& l) {
   for (const auto& e : l.legend) {
     const double y = e.box.y + e.box.h / 2, x0 = e.box.x, x1 = e.box.x + 26;
-    if (e.style == Series::Style::Points) {
+    if (e.shaded) {
+      cairo_set_source_rgba(cr, e.colour.r, e.colour.g, e.colour.b, kSpanAlpha);
+      cairo_rectangle(cr, x0, e.box.y + 2, x1 - x0, e.box.h - 4);
+      cairo_fill(cr);
+    } else if (e.style == Series::Style::Points) {
       set_colour(cr, measured_tint(e.colour));
       draw_dots(cr, {x0 + 5, x0 + 13, x0 + 21}, {y, y, y}, {0, 1, 2});
     } else {
@@ -192,6 +207,7 @@ void render(const std::vector<Plot>& panels, const FigureLayout& L, cairo_surfac
     cairo_save(cr);
     cairo_rectangle(cr, l.plot.x, l.plot.y, l.plot.w, l.plot.h);
     cairo_clip(cr);
+    draw_spans(cr, l);  // under everything: the shading says when, the data on top what
     // Measured dots underneath, model curves on top of them.
     for (const auto& s : p.series)
       if (s.style == Series::Style::Points) draw_series(cr, L, p, l, s, d);

@@ -10,7 +10,11 @@
 //   - the legend in a strip between the title and the plot box, wrapped to the canvas width (it
 //     is never cut off and never covers data);
 //   - x axes that end at the data; panels with the same x label share their x range;
-//   - vertical markers (a chosen value, an event) drawn and labelled inside the plot box.
+//   - vertical markers (a chosen value, an event) drawn and labelled inside the plot box;
+//   - shaded spans of the x axis (a declared event such as a lid open) under the data, with a
+//     legend entry each;
+//   - a linear x axis whose data begin just after 0 (a recording's first sample a few seconds in)
+//     starts at 0, so the time the reader counts from carries its tick.
 // plot_style.hpp has the helpers that build such series and panels (measured, model, speed panel,
 // axis labels with units); plot_layout.hpp exposes where everything lands, for tests.
 #include <cstddef>
@@ -36,6 +40,14 @@ struct Marker {
   std::string label;
 };
 
+// A shaded stretch [x0, x1] of the x axis across the whole panel height (the stretches a declared
+// event column is 1: a lid open, a pump on), drawn under the data. Spans with the same label share
+// one colour and one legend entry (the label, e.g. "lid_open = 1").
+struct Span {
+  double x0 = 0, x1 = 0;
+  std::string label;
+};
+
 struct Plot {
   std::string title, x_label, y_label;  // labels carry their unit: "time (h)", "temperature (°C)"
   std::vector<Series> series;
@@ -43,6 +55,7 @@ struct Plot {
   std::vector<Marker> markers{};
   double height_weight = 1.0;  // panel height as a multiple of FigureOptions::panel_height
   bool log_x = false;
+  std::vector<Span> spans{};
 };
 
 struct FigureOptions {

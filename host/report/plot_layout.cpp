@@ -106,10 +106,25 @@ struct Range {
   void add(double v) { lo = std::min(lo, v), hi = std::max(hi, v); }
 };
 
+// Span colours by label, in order of first appearance over the figure: light fills that differ
+// from each other and from the node colours' lines drawn on top.
+std::map<std::string, Rgb> assign_span_colours(const std::vector<Plot>& panels) {
+  static const Rgb kSpanPalette[] = {{0.45, 0.50, 0.85}, {0.95, 0.65, 0.15}, {0.40, 0.75, 0.45}, {0.80, 0.40, 0.75}};
+  std::map<std::string, Rgb> out;
+  for (const auto& p : panels)
+    for (const auto& s : p.spans)
+      if (!out.count(s.label)) {
+        const size_t n = out.size();
+        out[s.label] = kSpanPalette[n % (sizeof kSpanPalette / sizeof kSpanPalette[0])];
+      }
+  return out;
+}
+
 // The legend entries of one panel: one per node (colour), then one per kind of curve when a
 // panel shows several kinds (measured / model / ...), drawn in grey; a lone entry is left out
-// (the title says it).
-std::vector<LegendEntry> legend_entries(const Plot& p, const std::map<std::string, Rgb>& colours) {
+// (the title says it). Then one per span label: what the shading means is never left to guess.
+std::vector<LegendEntry> legend_entries(const Plot& p, const std::map<std::string, Rgb>& colours,
+                                        const std::map<std::string, Rgb>& span_colours) {
   std::vector<LegendEntry> out;
   std::set<std::string> keys_done, kinds_done;
   std::vector<const Series*> kinds;
@@ -142,6 +157,15 @@ std::vector<LegendEntry> legend_entries(const Plot& p, const std::map<std::strin
     const bool node_entry = std::any_of(p.series.begin(), p.series.end(),
                                         [](const Series& s) { return !s.key.empty() && s.key != "speed"; });
     if (!node_entry) out.clear();
+  }
+  std::set<std::string> spans_done;
+  for (const auto& sp : p.spans) {
+    if (sp.label.empty() || !spans_done.insert(sp.label).second) continue;
+    LegendEntry e;
+    e.text = sp.label;
+    e.colour = span_colours.at(sp.label);
+    e.shaded = true;
+    out.push_back(e);
   }
   return out;
 }
@@ -257,6 +281,7 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
   FigureLayout L;
   L.width = o.width;
   L.colours = assign_colours(panels, o.key_order);
+  const std::map<std::string, Rgb> span_colours = assign_span_colours(panels);
   TextMeasure tm;
 
   // Data ranges; panels with the same x label share one x range, so stacked time axes line up.
@@ -279,7 +304,10 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
   for (size_t i = 0; i < panels.size(); ++i) {
     const Plot& p = panels[i];
     PanelLayout& l = L.panels[i];
-    const Range g = x_group[group_of(i)];
+    Range g = x_group[group_of(i)];
+    // Data that begin just after 0 (a recording's first sample 5 s in, a run watched from its
+    // start) are read from 0: the axis starts there and 0 gets its tick.
+    if (!p.log_x && g.lo > 0 && g.hi > g.lo && g.lo <= kZeroSnap * (g.hi - g.lo)) g.lo = 0;
     l.x_ticks = p.log_x ? log_ticks(g.lo, g.hi) : linear_ticks_within(g.lo, g.hi, 8);
     if (!p.log_x && integer_x(p)) drop_fractional_ticks(l.x_ticks);  // an index axis has no tick 1.5
     // About one y tick per 45 px of the plot box (its height before the legend is known).
@@ -311,7 +339,7 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
     // Legend strip: entries flow left to right under the title and wrap at the canvas width.
     double lx = left, ly = y0 + 8 + kTitleFont + 10 + title_extra;
     const double max_x = o.width - right;
-    for (LegendEntry e : legend_entries(p, L.colours)) {
+    for (LegendEntry e : legend_entries(p, L.colours, span_colours)) {
       const double room = max_x - left - kSwatch - kSwatchGap;
       e.text = tm.fit(e.text, kLegendFont, room);
       const double w = kSwatch + kSwatchGap + tm.width(e.text, kLegendFont);
@@ -326,6 +354,13 @@ FigureLayout layout_figure(const std::vector<Plot>& panels, const FigureOptions&
     l.area = Rect{0, y0, static_cast<double>(o.width), h};
     l.plot = Rect{left, top, o.width - left - right, y0 + h - bottom_margin - top};
     l.y_label = tm.fit(unit_style(p.y_label), kAxisLabelFont, l.plot.h);  // it runs along the plot's height
+    for (const auto& sp : p.spans) {
+      const double a = std::max(std::min(sp.x0, sp.x1), l.x_ticks.lo), b = std::min(std::max(sp.x0, sp.x1), l.x_ticks.hi);
+      const bool shown = usable(a, p.log_x) && usable(b, p.log_x) && b > a;
+      const double xa = shown ? L.px(p, l, a) : 0, xb = shown ? L.px(p, l, b) : 0;
+      l.span_boxes.push_back(shown ? Rect{xa, l.plot.y, xb - xa, l.plot.h} : Rect{});
+      l.span_colour.push_back(span_colours.at(sp.label));
+    }
     for (const auto& m : p.markers) {
       const double x = usable(m.x, p.log_x) ? L.px(p, l, m.x) : NAN;
       l.marker_px.push_back(x);

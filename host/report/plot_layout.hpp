@@ -22,6 +22,7 @@ struct LegendEntry {
   std::string text;  // shortened with an ellipsis if it would not fit the canvas width
   Rgb colour;
   Series::Style style = Series::Style::Line;
+  bool shaded = false;  // a span's entry: a filled swatch in the span's colour
 };
 
 struct PanelLayout {
@@ -43,6 +44,10 @@ struct PanelLayout {
   // (top, bottom, middle; right, then left of the line) where it covers no drawn data, else the
   // one covering the least (empty box when the marker is outside or has no label).
   std::vector<Rect> marker_label_box;
+  // Each span of the plot (same order) clipped to the plot box, full height; empty (w = 0) when it
+  // lies outside the x range. Its colour: span_colour[i].
+  std::vector<Rect> span_boxes;
+  std::vector<Rgb> span_colour;
 };
 
 struct FigureLayout {
@@ -53,6 +58,11 @@ struct FigureLayout {
   double px(const Plot& p, const PanelLayout& l, double x) const;  // data -> canvas
   double py(const Plot& p, const PanelLayout& l, double y) const;
 };
+
+// A linear x axis whose data begin at x0 > 0 with x0 <= kZeroSnap x (the data's span) starts at 0.
+inline constexpr double kZeroSnap = 0.02;
+// Span fill opacity: light enough that dots and lines on top keep their colour.
+inline constexpr double kSpanAlpha = 0.22;
 
 // Font sizes (px) every figure uses.
 // Inner margin of the y range inside the plot frame (px).

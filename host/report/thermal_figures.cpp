@@ -1,6 +1,7 @@
 #include "host/report/thermal_figures.hpp"
 
 #include "host/report/plot_style.hpp"
+#include "host/thermal/declared_columns.hpp"
 
 #include <fmt/core.h>
 
@@ -33,6 +34,34 @@ Plot recording_speed_panel(const thermal::Recording& rec) {
   return p;
 }
 
+std::vector<Span> event_spans(const thermal::Recording& rec) {
+  std::vector<Span> out;
+  for (const auto& column : thermal::event_columns(rec)) {
+    const int c = rec.channel_index(column);
+    if (c < 0) continue;
+    const std::size_t n = rec.rows();
+    for (std::size_t k = 0; k < n;) {
+      if (rec.temp_c(static_cast<Eigen::Index>(k), c) != 1.0) {
+        ++k;
+        continue;
+      }
+      std::size_t end = k;
+      while (end < n && rec.temp_c(static_cast<Eigen::Index>(end), c) == 1.0) ++end;
+      const double t1 = end < n ? rec.time_s[end] : rec.time_s[n - 1];
+      out.push_back(Span{rec.time_s[k] / 3600.0, t1 / 3600.0, column + " = 1"});
+      k = end;
+    }
+  }
+  return out;
+}
+
+void add_event_spans(std::vector<Plot>& panels, const thermal::Recording& rec) {
+  const std::vector<Span> spans = event_spans(rec);
+  if (spans.empty()) return;
+  for (auto& p : panels)
+    if (p.x_label == kTimeAxis) p.spans.insert(p.spans.end(), spans.begin(), spans.end());
+}
+
 std::vector<Plot> validation_figure(const thermal::Network& net, const thermal::Recording& rec,
                                     const thermal::RecordingValidation& v, const std::string& title) {
   const std::vector<double> t_h = hours(rec.time_s);
@@ -52,7 +81,9 @@ std::vector<Plot> validation_figure(const thermal::Network& net, const thermal::
     temps.series.push_back(model(node, t_h, pred));
     resid.series.push_back(trace(node, t_h, res));
   }
-  return {temps, resid, recording_speed_panel(rec)};
+  std::vector<Plot> panels{temps, resid, recording_speed_panel(rec)};
+  add_event_spans(panels, rec);
+  return panels;
 }
 
 namespace {
@@ -103,6 +134,7 @@ std::vector<Plot> heat_figure(const thermal::Network& net, const thermal::Record
   panels.push_back(temps);
   panels.push_back(res);
   panels.push_back(recording_speed_panel(rec));
+  add_event_spans(panels, rec);
 
   if (!r.scan.empty()) {
     Plot scan{"GCV over the regularisation parameter α", "α (K²/W²)", "GCV (K²)", {}};

@@ -228,6 +228,7 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     model_panels.push_back(p);
   }
   model_panels.push_back(rp::recording_speed_panel(rec));
+  rp::add_event_spans(model_panels, rec);
   rp::save_figure(model_panels, dir + "/residual_model", style);
   std::vector<rp::Plot> res_panels;
   auto residual_plot = [&](const std::vector<Eigen::MatrixXd>& res, const std::string& title) {
@@ -247,6 +248,7 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     res_panels.push_back(p);
   }
   res_panels.push_back(rp::recording_speed_panel(rec));
+  rp::add_event_spans(res_panels, rec);
   rp::save_figure(res_panels, dir + "/residual_residuals", style);
   if (!r.trace.empty()) {
     const std::string trace_name =
@@ -256,8 +258,12 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
     for (const auto& t : r.trace) p.series.push_back(rp::trace(t.node, rp::hours(t.time_s), t.heat_w, rp::Series::Style::Step));
     std::vector<rp::Plot> trace_panels{p};
     // Heat that follows the speed is read against it, as in every other time plot.
-    if (trace_recording) trace_panels.push_back(rp::recording_speed_panel(*trace_recording));
-    else style.panel_height = 420;
+    if (trace_recording) {
+      trace_panels.push_back(rp::recording_speed_panel(*trace_recording));
+      rp::add_event_spans(trace_panels, *trace_recording);
+    } else {
+      style.panel_height = 420;
+    }
     rp::save_figure(trace_panels, dir + "/residual_heat_trace", style);
   }
 }

@@ -5,6 +5,7 @@
 #include "host/report/plot_layout.hpp"
 #include "host/report/plot_style.hpp"
 
+#include <cairo.h>
 #include <gtest/gtest.h>
 
 #include <cmath>
@@ -117,6 +118,69 @@ TEST(PlotStyle, TimeAxisEndsAtTheDataAndStackedPanelsLineUp) {
   }
   EXPECT_LT(L.panels[1].area.h, L.panels[0].area.h);  // the speed panel is the short one
   EXPECT_EQ(speed.y_label, std::string("speed (rpm)"));
+}
+
+TEST(PlotStyle, ATimeAxisWhoseDataBeginJustAfterZeroStartsAtAZeroTick) {
+  // A recording's first sample 5 s in, a production run watched from its start: the axis used to
+  // begin at 0.0014 h with its first tick at 0.5.
+  const auto t = ramp(3600, 5.0 / 3600, 5.0);
+  const FigureLayout L = layout_figure({Plot{"t", kTimeAxis, kTemperatureAxis, {model("a", t, t)}}}, {});
+  const AxisTicks& x = L.panels[0].x_ticks;
+  EXPECT_DOUBLE_EQ(x.lo, 0.0);
+  ASSERT_FALSE(x.values.empty());
+  EXPECT_DOUBLE_EQ(x.values.front(), 0.0);
+  EXPECT_EQ(x.labels.front().find_first_not_of("0."), std::string::npos) << x.labels.front();
+  EXPECT_DOUBLE_EQ(x.hi, 5.0);  // still ends at the data
+  // Data that begin well into the axis (a check part cut from 2.8 h on) keep their own start.
+  const auto late = ramp(100, 2.8, 5.4);
+  const FigureLayout M = layout_figure({Plot{"t", kTimeAxis, kTemperatureAxis, {model("a", late, late)}}}, {});
+  EXPECT_DOUBLE_EQ(M.panels[0].x_ticks.lo, 2.8);
+}
+
+TEST(PlotStyle, SpansAreShadedUnderTheDataWithOneLegendEntryPerLabel) {
+  const auto t = ramp(200, 0, 10);
+  Plot p{"t", kTimeAxis, kTemperatureAxis, {model("a", t, t)}};
+  p.spans = {{1.0, 2.0, "lid_open = 1"}, {6.0, 6.5, "lid_open = 1"}, {9.5, 12.0, "pump_on = 1"}, {20, 21, "pump_on = 1"}};
+  const FigureLayout L = layout_figure({p}, {});
+  const PanelLayout& l = L.panels[0];
+  ASSERT_EQ(l.span_boxes.size(), 4u);
+  EXPECT_NEAR(l.span_boxes[0].x, L.px(p, l, 1.0), 1e-9);
+  EXPECT_NEAR(l.span_boxes[0].x + l.span_boxes[0].w, L.px(p, l, 2.0), 1e-9);
+  EXPECT_DOUBLE_EQ(l.span_boxes[0].h, l.plot.h);
+  EXPECT_TRUE(l.plot.contains(l.span_boxes[2]));  // clipped at the axis end (10)
+  EXPECT_EQ(l.span_boxes[3].w, 0.0);              // outside the x range: not drawn
+  EXPECT_FALSE(l.span_colour[0] == l.span_colour[2]);
+  int lid = 0, pump = 0;
+  for (const auto& e : l.legend) {
+    if (!e.shaded) continue;
+    lid += e.text == "lid_open = 1";
+    pump += e.text == "pump_on = 1";
+  }
+  EXPECT_EQ(lid, 1);
+  EXPECT_EQ(pump, 1);
+  // Drawn: a pixel inside the span is tinted blue, one outside it is not.
+  const fs::path dir = fs::temp_directory_path() / "btsm_span_plot";
+  fs::create_directories(dir);
+  Plot bare{"t", kTimeAxis, kTemperatureAxis, {Series{"flat", {0, 10}, {0, 0}, Series::Style::Line, "a"}}};
+  bare.spans = {{1.0, 2.0, "lid_open = 1"}};
+  save_plot(bare, (dir / "span").string(), 1000, 420);
+  FigureOptions o;
+  o.panel_height = 420;
+  const FigureLayout B = layout_figure({bare}, o);
+  cairo_surface_t* png = cairo_image_surface_create_from_png((dir / "span.png").string().c_str());
+  ASSERT_EQ(cairo_surface_status(png), CAIRO_STATUS_SUCCESS);
+  auto blueness = [&](double x, double y) {  // blue minus red of the pixel, 0..255
+    const unsigned char* d = cairo_image_surface_get_data(png);
+    const int stride = cairo_image_surface_get_stride(png);
+    const auto px = reinterpret_cast<const uint32_t*>(d + stride * static_cast<int>(y))[static_cast<int>(x)];
+    return static_cast<int>(px & 0xff) - static_cast<int>((px >> 16) & 0xff);
+  };
+  const PanelLayout& b = B.panels[0];
+  const double y = b.plot.y + 0.3 * b.plot.h;
+  EXPECT_GT(blueness(B.px(bare, b, 1.5), y), 12);
+  EXPECT_LT(std::abs(blueness(B.px(bare, b, 4.5), y)), 3);
+  cairo_surface_destroy(png);
+  fs::remove_all(dir);
 }
 
 TEST(PlotStyle, MarkerLandsAtItsValueInsideThePlot) {

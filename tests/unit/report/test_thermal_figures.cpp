@@ -117,3 +117,36 @@ TEST(ThermalFigures, AnotherInputInTheSpeedColumnIsLabelledAsDeclared) {
   // A real spindle recording keeps its speed axis.
   EXPECT_EQ(recording_speed_panel(small_recording(net)).y_label, kSpeedAxis);
 }
+
+TEST(ThermalFigures, DeclaredEventsAreShadedOnEveryTimePanel) {
+  // The incubator's lid openings (tests/data/incubator-dt): a declared 0/1 column. Its runs of 1s
+  // are shaded on the measured, residual and input panels; the figures drew none before.
+  const auto net = thermal::preset_network("spindle4");
+  thermal::Recording rec = small_recording(net);
+  rec.channels.push_back("lid_open");
+  rec.temp_c.conservativeResize(Eigen::NoChange, rec.temp_c.cols() + 1);
+  const Eigen::Index lid = rec.temp_c.cols() - 1;
+  rec.temp_c.col(lid).setZero();
+  for (int k = 10; k < 13; ++k) rec.temp_c(k, lid) = 1;  // 6000-7800 s
+  rec.temp_c(49, lid) = 1;                             // open on the last row: up to the end
+  rec.meta.emplace_back("event_columns", "lid_open");
+  const std::vector<Span> spans = event_spans(rec);
+  ASSERT_EQ(spans.size(), 2u);
+  EXPECT_DOUBLE_EQ(spans[0].x0, 6000.0 / 3600);
+  EXPECT_DOUBLE_EQ(spans[0].x1, 7800.0 / 3600);  // until the row after the last 1 (zero-order hold)
+  EXPECT_EQ(spans[0].label, "lid_open = 1");
+  EXPECT_DOUBLE_EQ(spans[1].x0, rec.time_s.back() / 3600);
+
+  thermal::RecordingValidation v;
+  v.predicted_c = Eigen::MatrixXd::Constant(static_cast<Eigen::Index>(rec.rows()), net.node_count(), 25.5);
+  const auto panels = validation_figure(net, rec, v, "warmup.csv");
+  for (const auto& p : panels) EXPECT_EQ(p.spans.size(), 2u) << p.title;
+  const FigureLayout L = layout_figure(panels, network_figure_options(net));
+  bool legend = false;
+  for (const auto& e : L.panels[0].legend) legend |= e.shaded && e.text == "lid_open = 1";
+  EXPECT_TRUE(legend);
+  EXPECT_GT(L.panels[0].span_boxes[0].w, 0.0);
+  // Undeclared, the same column is a plain column: nothing shaded.
+  rec.meta.pop_back();
+  EXPECT_TRUE(event_spans(rec).empty());
+}
