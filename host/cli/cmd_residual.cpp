@@ -88,6 +88,10 @@ void run_residual(ResidualArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw CommandError(kExitUsage, e.what());
   }
+  // The base fit's warnings (parameters started from their peers because the cooling data left
+  // them unsettled, weakly or not identifiable ones, an iteration limit), as `btsm fit` prints
+  // them: the candidates are judged against that base, so its weak spots must be visible here too.
+  for (const auto& w : r.base_fit.warnings) std::cerr << "residual: base fit warning: " << w << "\n";
   if (!a.report_dir.empty()) {
     try {
       rs::write_report(r, check, a.report_dir, fit.empty() ? nullptr : &fit.front());

@@ -115,6 +115,7 @@ nlohmann::json to_json(const LoopResult& r) {
     bf["parameters"].push_back({{"name", e.name}, {"unit", e.unit}, {"value", num(e.value)}, {"sigma", num(e.sigma)},
                                 {"status", thermal::identifiability_name(e.status)}});
   j["base_fit"] = bf;
+  j["base_fit_warnings"] = r.base_fit.warnings;  // as `btsm fit` prints them; [] with --use-values
   j["seconds"] = r.seconds;
   return j;
 }
