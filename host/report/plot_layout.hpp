@@ -61,6 +61,8 @@ struct FigureLayout {
 
 // A linear x axis whose data begin at x0 > 0 with x0 <= kZeroSnap x (the data's span) starts at 0.
 inline constexpr double kZeroSnap = 0.02;
+// A linear y axis spans at most this multiple of its data's range when up to two more ticks get it there.
+inline constexpr double kMaxYRangeOverData = 1.4;
 // Span fill opacity: light enough that dots and lines on top keep their colour.
 inline constexpr double kSpanAlpha = 0.22;
 

@@ -137,6 +137,18 @@ TEST(PlotStyle, ATimeAxisWhoseDataBeginJustAfterZeroStartsAtAZeroTick) {
   EXPECT_DOUBLE_EQ(M.panels[0].x_ticks.lo, 2.8);
 }
 
+TEST(PlotStyle, AShortSpeedPanelsAxisEndsNearItsTopSpeed) {
+  // Speeds up to 6000 rpm were drawn on a 0-10000 axis (two ticks' worth of a short panel).
+  const Plot speed = speed_panel(ramp(10, 0, 5.0), {0, 6000, 6000, 6000, 3000, 3000, 0, 0, 5000, 5000});
+  const FigureLayout L = layout_figure({speed}, {});
+  const AxisTicks& y = L.panels[0].y_ticks;
+  EXPECT_DOUBLE_EQ(y.lo, 0.0);
+  EXPECT_LE(y.hi, 1.4 * 6000);
+  EXPECT_GE(y.values.size(), 3u);
+  for (size_t k = 1; k < y.values.size(); ++k)  // labels stay apart in the short panel
+    EXPECT_GE(L.py(speed, L.panels[0], y.values[k - 1]) - L.py(speed, L.panels[0], y.values[k]), kTickFont + 2);
+}
+
 TEST(PlotStyle, SpansAreShadedUnderTheDataWithOneLegendEntryPerLabel) {
   const auto t = ramp(200, 0, 10);
   Plot p{"t", kTimeAxis, kTemperatureAxis, {model("a", t, t)}};
