@@ -66,6 +66,12 @@ struct FitOptions {
   // (stage 3's neutral start on the reference recordings) crawls for hundreds of iterations.
   int start_iterations = 60;
   double relative_tolerance = 1e-10;  // stop when the cost decreases less than this (relative)
+  // A staged fit whose final stage ends above this multiple of the recordings' noise floor
+  // (fit_noise_floor.hpp) may sit in a wrong basin the staged start led it into (an operating
+  // stage that balanced huge heat against a tiny resistance, a drifting probe's cooling data):
+  // the final stage is then also run from the other starts (FitResult::warnings says which ones
+  // and which won) and the lowest cost on the fit recordings is kept. 0 = never. 1 (a ratio).
+  double restart_above_noise_factor = 10.0;
   // Sigma from the residuals as they are: the covariance is the sandwich H^-1 M H^-1 with M the
   // long-run (Bartlett) covariance of the scores over the residual autocorrelation bandwidth.
   // false = the classical s^2 H^-1, which assumes white residuals.
@@ -118,6 +124,9 @@ struct FitResult {
   // no model and exits 1 with this text.
   std::string unusable;
   std::vector<StageSummary> stages;
+  double noise_floor_K = 0;                   // the recordings' noise floor, K (set when the final rms was compared with it)
+  int final_starts_tried = 1;                 // starts of the final stage (> 1 after restarts far above the noise floor)
+  std::string final_start;                    // which start the kept final stage came from ("staged" unless a restart won)
   std::vector<std::string> warnings;
   double seconds = 0;
 };

@@ -45,6 +45,15 @@ TEST(ThermalFit, RecoversEveryParameterWithin2Sigma) {
   std::cout << "total " << rf.fit.seconds << " s, rms " << rf.fit.rms_K << " cond " << rf.fit.condition_number << "\n";
 }
 
+// A fit that ends at its noise floor is left exactly as it was: its final stage is not solved again
+// from other starts (fit.hpp: FitOptions::restart_above_noise_factor), which would only cost time.
+TEST(ThermalFit, AFitAtItsNoiseFloorTriesNoOtherStart) {
+  const auto& rf = reference_fit();
+  EXPECT_EQ(rf.fit.final_starts_tried, 1);
+  EXPECT_EQ(rf.fit.final_start, "staged");
+  EXPECT_LT(rf.fit.rms_K, 2 * rf.fit.noise_floor_K) << "the floor the fit was compared with";
+}
+
 TEST(ThermalFit, WeakParametersAreReportedAsSuch) {
   const auto& rf = reference_fit();
   const Eigen::VectorXd truth = test::true_parameters(rf.net);
