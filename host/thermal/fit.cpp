@@ -486,11 +486,15 @@ class FitPipeline {
     for (const auto& e : failed)
       if (e) std::rethrow_exception(e);
     int best = -1;  // -1 = the staged start
+    const double keep = opts_.restart_keep_rms_ratio * opts_.restart_keep_rms_ratio;
     double best_ssr = done.outcome.ev.ssr;
     for (std::size_t k = 0; k < starts.size(); ++k) {
       record_stage(solved[k].summary);
       const double ssr = solved[k].outcome.ev.ssr;
-      if (std::isfinite(ssr) && !(best_ssr <= ssr)) {  // a failed (NaN) start never wins; a tie keeps the earlier
+      // a failed (NaN) start never wins; a tie keeps the earlier; the staged start is left only
+      // for another basin (rms at most restart_keep_rms_ratio of it)
+      const bool beats = best < 0 ? !(done.outcome.ev.ssr * keep <= ssr) : !(best_ssr <= ssr);
+      if (std::isfinite(ssr) && beats) {
         best = static_cast<int>(k);
         best_ssr = ssr;
       }
@@ -503,7 +507,8 @@ class FitPipeline {
       res_.warnings.push_back("the final stage ended at rms " + fmt_double(rms, 4) + " K, " + fmt_double(rms / res_.noise_floor_K, 3) +
                               "x the recordings' noise floor (" + fmt_double(res_.noise_floor_K, 3) + " K): solved again from " +
                               std::to_string(starts.size()) + " other start(s) (" + tried.substr(2) +
-                              "); none ended lower, the staged start is kept");
+                              "); none ended at " + fmt_double(opts_.restart_keep_rms_ratio, 3) +
+                              "x its rms or lower, the staged start is kept");
       return;
     }
     const auto b = static_cast<std::size_t>(best);

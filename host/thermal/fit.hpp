@@ -72,6 +72,11 @@ struct FitOptions {
   // the final stage is then also run from the other starts (FitResult::warnings says which ones
   // and which won) and the lowest cost on the fit recordings is kept. 0 = never. 1 (a ratio).
   double restart_above_noise_factor = 10.0;
+  // ... and another start's final stage replaces the staged one only when its rms is at most this
+  // fraction of it: another basin, the residual loop's own rule for a base in a wrong basin. A
+  // merely lower minimum of a network that lacks an effect moved answers the wrong way (suite case
+  // ambient_dynamics air_lag_02: 0.318 -> 0.262 K base, the lag no longer named). 1 (a ratio).
+  double restart_keep_rms_ratio = 0.5;
   // Sigma from the residuals as they are: the covariance is the sandwich H^-1 M H^-1 with M the
   // long-run (Bartlett) covariance of the scores over the residual autocorrelation bandwidth.
   // false = the classical s^2 H^-1, which assumes white residuals.
