@@ -7,6 +7,7 @@
 #include "host/residual/residual_tests.hpp"
 #include "host/thermal/column_map.hpp"
 #include "host/thermal/declared_columns.hpp"
+#include "host/thermal/fit_noise_floor.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/simulator.hpp"
 
@@ -34,32 +35,12 @@ std::string file_name(const std::string& path) {
   return p == std::string::npos ? path : path.substr(p + 1);
 }
 
-// LoopResult::check_floor_k: sqrt(noise^2 + timing^2), timing = rms probe rate x median sample
-// period over the measured cells of the recordings of a BTSM module (metadata `module_id`: every
-// reading is its Kalman filter's estimate); 0 for other recordings (readings taken at their times).
+// LoopResult::check_floor_k: the noise and, for a BTSM module's recordings, the lag of its
+// filtered readings (fit_noise_floor.hpp: the fit's floor follows the same rule).
 double measurement_floor(const std::vector<th::Recording>& recs, const std::vector<Eigen::MatrixXd>& measured, double noise_k) {
-  double ss = 0;
-  std::size_t n = 0;
-  std::vector<double> dts;
-  for (std::size_t r = 0; r < recs.size(); ++r) {
-    if (recs[r].meta_value("module_id").empty()) continue;
-    const Eigen::MatrixXd& m = measured[r];
-    for (Eigen::Index k = 1; k < m.rows(); ++k) {
-      const double dt = recs[r].time_s[static_cast<std::size_t>(k)] - recs[r].time_s[static_cast<std::size_t>(k - 1)];
-      if (!(dt > 0)) continue;
-      dts.push_back(dt);
-      for (Eigen::Index c = 0; c < m.cols(); ++c) {
-        const double d = m(k, c) - m(k - 1, c);
-        if (!std::isfinite(d)) continue;
-        ss += (d / dt) * (d / dt);
-        ++n;
-      }
-    }
-  }
-  if (n == 0 || dts.empty()) return noise_k;
-  std::nth_element(dts.begin(), dts.begin() + static_cast<std::ptrdiff_t>(dts.size() / 2), dts.end());
-  const double timing = std::sqrt(ss / static_cast<double>(n)) * dts[dts.size() / 2];
-  return std::sqrt(noise_k * noise_k + timing * timing);
+  th::fitting::FilterLagFloor lag;
+  for (std::size_t r = 0; r < recs.size(); ++r) lag.add(recs[r], measured[r]);
+  return lag.floor_k(noise_k);
 }
 
 class ResidualLoop {

@@ -366,21 +366,7 @@ class FitPipeline {
       names.push_back("stage 3 (operating output error" + start.first + ")");
       announce_stage(names.back(), problems.back());
     }
-    std::vector<SolvedStage> solved(starts.size());
-    std::vector<std::exception_ptr> failed(starts.size());
-    auto solve = [&](std::size_t k) {
-      try {
-        solved[k] = solve_stage(names[k], problems[k], false);
-      } catch (...) {
-        failed[k] = std::current_exception();
-      }
-    };
-    std::vector<std::thread> others;
-    for (std::size_t k = 1; k < starts.size(); ++k) others.emplace_back(solve, k);
-    solve(0);
-    for (auto& t : others) t.join();
-    for (const auto& e : failed)
-      if (e) std::rethrow_exception(e);
+    const std::vector<SolvedStage> solved = solve_side_by_side(names, problems, false);
     std::size_t best = 0;
     for (std::size_t k = 0; k < starts.size(); ++k) {
       record_stage(solved[k].summary);
@@ -449,6 +435,28 @@ class FitPipeline {
     return true;
   }
 
+  // Independent starts over the same recordings, solved at once (one on this thread, the others on
+  // their own); the first failure is rethrown after all have ended.
+  std::vector<SolvedStage> solve_side_by_side(const std::vector<std::string>& names, std::vector<OutputErrorProblem>& problems,
+                                              bool final_stage) {
+    std::vector<SolvedStage> solved(problems.size());
+    std::vector<std::exception_ptr> failed(problems.size());
+    auto solve = [&](std::size_t k) {
+      try {
+        solved[k] = solve_stage(names[k], problems[k], final_stage);
+      } catch (...) {
+        failed[k] = std::current_exception();
+      }
+    };
+    std::vector<std::thread> others;
+    for (std::size_t k = 1; k < problems.size(); ++k) others.emplace_back(solve, k);
+    if (!problems.empty()) solve(0);
+    for (auto& t : others) t.join();
+    for (const auto& e : failed)
+      if (e) std::rethrow_exception(e);
+    return solved;
+  }
+
   // A final stage far above the noise floor is solved again from every other start, all at once,
   // and the lowest cost on the fit recordings is kept (never anything from check data: the fit
   // sees no other). A fit that ends near its floor is left exactly as it was.
@@ -470,21 +478,7 @@ class FitPipeline {
       names.push_back("stage 4 (joint output error, " + st.name + ")");
       announce_stage(names.back(), problems.back());
     }
-    std::vector<SolvedStage> solved(starts.size());
-    std::vector<std::exception_ptr> failed(starts.size());
-    auto solve = [&](std::size_t k) {
-      try {
-        solved[k] = solve_stage(names[k], problems[k], true);
-      } catch (...) {
-        failed[k] = std::current_exception();
-      }
-    };
-    std::vector<std::thread> others;
-    for (std::size_t k = 1; k < starts.size(); ++k) others.emplace_back(solve, k);
-    solve(0);
-    for (auto& t : others) t.join();
-    for (const auto& e : failed)
-      if (e) std::rethrow_exception(e);
+    std::vector<SolvedStage> solved = solve_side_by_side(names, problems, true);
     int best = -1;  // -1 = the staged start
     const double keep = opts_.restart_keep_rms_ratio * opts_.restart_keep_rms_ratio;
     double best_ssr = done.outcome.ev.ssr;
