@@ -496,22 +496,20 @@ class FitPipeline {
     res_.final_starts_tried = 1 + static_cast<int>(starts.size());
     std::string tried;
     for (const auto& st : starts) tried += "; " + st.name;
+    // What happened, for both outcomes: the staged rms against the floor and the starts tried.
+    const std::string why = " ended at rms " + fmt_double(rms, 4) + " K, " + fmt_double(rms / res_.noise_floor_K, 3) +
+                            "x the recordings' noise floor (" + fmt_double(res_.noise_floor_K, 3) + " K): solved again from " +
+                            std::to_string(starts.size()) + " other start(s) (" + tried.substr(2) + "); ";
     if (best < 0) {
       say("final stage: the staged start stays the lowest");
-      res_.warnings.push_back("the final stage ended at rms " + fmt_double(rms, 4) + " K, " + fmt_double(rms / res_.noise_floor_K, 3) +
-                              "x the recordings' noise floor (" + fmt_double(res_.noise_floor_K, 3) + " K): solved again from " +
-                              std::to_string(starts.size()) + " other start(s) (" + tried.substr(2) +
-                              "); none ended at " + fmt_double(opts_.restart_keep_rms_ratio, 3) +
+      res_.warnings.push_back("the final stage" + why + "none ended at " + fmt_double(opts_.restart_keep_rms_ratio, 3) +
                               "x its rms or lower, the staged start is kept");
       return;
     }
     const auto b = static_cast<std::size_t>(best);
     const double best_rms = solved[b].summary.rms_K;
     say("final stage: kept the " + starts[b].name + " (rms " + fmt_double(best_rms, 4) + " K)");
-    res_.warnings.push_back("the final stage from the staged start ended at rms " + fmt_double(rms, 4) + " K, " +
-                            fmt_double(rms / res_.noise_floor_K, 3) + "x the recordings' noise floor (" +
-                            fmt_double(res_.noise_floor_K, 3) + " K): solved again from " + std::to_string(starts.size()) +
-                            " other start(s) (" + tried.substr(2) + "); the " + starts[b].name + " ended lowest (rms " +
+    res_.warnings.push_back("the final stage from the staged start" + why + "the " + starts[b].name + " ended lowest (rms " +
                             fmt_double(best_rms, 4) + " K) and is kept");
     res_.final_start = starts[b].name;
     pr = std::move(problems[b]);
