@@ -10,6 +10,7 @@
 #include <fstream>
 #include <limits>
 #include <sstream>
+#include <string_view>
 #include <stdexcept>
 #include <unordered_set>
 
@@ -110,7 +111,10 @@ std::string Recording::meta_value(const std::string& key) const {
 Recording parse_recording_csv(const std::string& text, const std::string& source) {
   Recording rec;
   rec.source = source;
-  std::istringstream in(text);
+  // A spreadsheet saving "CSV UTF-8" starts the file with a byte-order mark; it is not part of the
+  // first column's name, and refusing the header over an invisible mark helps nobody.
+  static constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
+  std::istringstream in(std::string_view(text).substr(0, kUtf8Bom.size()) == kUtf8Bom ? text.substr(kUtf8Bom.size()) : text);
   std::string raw;
   std::size_t line_no = 0;
   bool have_header = false;

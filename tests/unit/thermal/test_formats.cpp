@@ -33,6 +33,14 @@ TEST(RecordingCsv, ParsesMetadataMissingValuesAndChannels) {
   EXPECT_DOUBLE_EQ(r.ambient_c[1], 25.5);
 }
 
+TEST(RecordingCsv, AcceptsAUtf8ByteOrderMarkBeforeTheHeader) {
+  const Recording r = parse_recording_csv("\xEF\xBB\xBFtime_s,speed_rpm,ambient_c,T1\r\n0,6000,25,25.1\r\n5,6000,25,25.2\r\n", "bom.csv");
+  ASSERT_EQ(r.rows(), 2u);
+  EXPECT_DOUBLE_EQ(r.temp_c(1, 0), 25.2);
+  // Only at the start of the file: the same bytes inside the header are a bad column name.
+  EXPECT_NE(error_of("time_s,\xEF\xBB\xBFspeed_rpm,ambient_c,T1\n0,0,25,1\n").find("rec.csv:1:2:"), std::string::npos);
+}
+
 TEST(RecordingCsv, ErrorsNameFileLineAndColumn) {
   EXPECT_EQ(error_of("time_s,speed_rpm,T1\n0,0,1\n").rfind("rec.csv:1:3:", 0), 0u) << error_of("time_s,speed_rpm,T1\n0,0,1\n");
   const std::string bad = error_of("time_s,speed_rpm,ambient_c,T1,T2\n0,0,25,1,2\n5,0,25,1x,2\n");
