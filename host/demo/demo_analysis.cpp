@@ -133,7 +133,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
     // The model that is reduced (the base fit with the effect found, if one was), as a model JSON
     // `btsm reduce` reads.
     nlohmann::json fj;
-    fj["format"] = "btsm-thermal-model-1";
+    fj["format"] = thermal::kFittedModelFormat;
     fj["network"] = thermal::network_to_json(final_net);
     for (int i = 0; i < final_net.param_count(); ++i) fj["parameters"][final_net.params[static_cast<std::size_t>(i)].name] = final_params[i];
     fj["channel_map"] = thermal::channel_map_json(final_net, fit_recs);

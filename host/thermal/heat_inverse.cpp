@@ -3,13 +3,14 @@
 // and the dense stacked formulation of the paper as a reference. See heat_inverse.hpp.
 #include "host/thermal/heat_inverse.hpp"
 
+#include "host/io/json_input.hpp"
 #include "host/thermal/model_file.hpp"
 #include "host/thermal/simulator.hpp"
 
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
-#include <fstream>
+#include <filesystem>
 #include <cmath>
 #include <limits>
 #include <map>
@@ -399,21 +400,18 @@ double estimate_noise_sigma(const Eigen::MatrixXd& measured) {
 ModelWithParameters load_model_with_parameters(const std::string& path_or_preset) {
   ModelWithParameters m;
   m.source = path_or_preset;
-  std::ifstream f(path_or_preset);
-  if (!f) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path_or_preset, ec)) {
     const std::vector<std::string> presets = preset_names();
     if (std::find(presets.begin(), presets.end(), path_or_preset) == presets.end())
       throw std::invalid_argument("model '" + path_or_preset + "' is neither a readable file nor a preset name");
     m.network = preset_network(path_or_preset);
     m.params = default_parameters(m.network);
   } else {
-    nlohmann::json j;
-    try {
-      j = nlohmann::json::parse(f);
-    } catch (const nlohmann::json::exception& e) {
-      throw std::invalid_argument(path_or_preset + ": not valid JSON: " + e.what());
-    }
-    if (j.is_object() && j.contains("network")) {
+    // Through the capped, depth-guarded reader like every other input: a JSON nested 100,000 deep
+    // overflowed the stack here, and a directory or a device got a stream error, not its name.
+    const nlohmann::json j = io::read_json_file(path_or_preset, std::max(kMaxModelBytes, kMaxNetworkBytes), "model or network JSON");
+    if (j.is_object() && (j.contains("network") || j.contains("format"))) {
       // the fitted-model JSON written by `btsm fit` (model_file.hpp)
       const FittedModel fm = model_from_json(j, path_or_preset);
       m.network = fm.network;

@@ -71,6 +71,16 @@ std::string model_problems(const Network& net, const Eigen::VectorXd& params) {
 }
 
 FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
+  // The other JSON files the tool writes, given where a fit result belongs, are named for what they
+  // are: "needs 'network'" alone sends a user looking for a field a reduced model never has.
+  if (j.is_object() && j.contains("format") && j.at("format").is_string()) {
+    const std::string format = j.at("format").get<std::string>();
+    if (format.rfind("btsm-reduced-model", 0) == 0)
+      throw std::invalid_argument(src + ": a reduced model ('" + format +
+                                  "', from btsm reduce); this command takes the fitted model from btsm fit --out");
+    if (format != kFittedModelFormat)
+      throw std::invalid_argument(src + ": format '" + format + "' is not a fitted model ('" + kFittedModelFormat + "')");
+  }
   if (!j.is_object() || !j.contains("network") || !j.contains("parameters"))
     throw std::invalid_argument(src + ": not a btsm model (needs 'network' and 'parameters')");
   FittedModel m;

@@ -22,6 +22,8 @@ struct FittedModel {
 };
 
 // Size cap of a model file (a fitted model is a few kB), stated in the error.
+// The "format" every fitted-model JSON carries (a reader refuses another named format).
+inline constexpr const char* kFittedModelFormat = "btsm-thermal-model-1";
 constexpr std::size_t kMaxModelBytes = std::size_t{16} << 20;
 
 nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std::vector<Recording>& recs);

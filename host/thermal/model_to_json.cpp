@@ -46,7 +46,7 @@ nlohmann::json channel_map_json(const Network& net, const std::vector<Recording>
 
 nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std::vector<Recording>& recs) {
   nlohmann::json j;
-  j["format"] = "btsm-thermal-model-1";
+  j["format"] = kFittedModelFormat;
   j["network"] = network_to_json(net);
   nlohmann::json values, sigma, units, status, notes;
   for (const auto& e : fit.estimates) {

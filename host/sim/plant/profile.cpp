@@ -1,9 +1,9 @@
 #include "host/sim/plant/profile.hpp"
 
+#include "host/io/input_file.hpp"
 #include "host/sim/plant/strict_number.hpp"
 
 #include <cmath>
-#include <fstream>
 #include <limits>
 #include <sstream>
 #include <stdexcept>
@@ -101,8 +101,9 @@ SpeedProfile SpeedProfile::parse(const std::string& spec) {
 }
 
 SpeedProfile SpeedProfile::load_file(const std::string& path) {
-  std::ifstream in(path);
-  if (!in) throw std::invalid_argument("speed profile file " + path + ": cannot open");
+  // Through the capped reader like every input: /dev/zero (or any file without line ends) made
+  // getline grow one line without bound, and sim-module never started.
+  std::istringstream in(io::read_input_file(path, kMaxProfileFileBytes, "speed profile file"));
   SpeedProfile p;
   std::string line;
   int lineno = 0;

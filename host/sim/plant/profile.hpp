@@ -11,6 +11,7 @@
 // end the last value holds.
 //
 // Parse errors throw std::invalid_argument naming the offending item and its position.
+#include <cstddef>
 #include <string>
 #include <vector>
 
@@ -24,13 +25,17 @@ struct SpeedSegment {
 // Parses "90", "90s", "15m", "15min", "1.5h" into seconds. `what` names the item in errors.
 double parse_duration_s(const std::string& text, const std::string& what);
 
+// A speed profile file holds a few hundred segments at most; 1 MiB is far beyond any real one.
+inline constexpr std::size_t kMaxProfileFileBytes = std::size_t{1} << 20;
+
 class SpeedProfile {
  public:
   SpeedProfile() = default;
   explicit SpeedProfile(std::vector<SpeedSegment> segments);
 
   static SpeedProfile parse(const std::string& spec);       // "6h@6000,4h@0"
-  static SpeedProfile load_file(const std::string& path);   // same syntax, several lines
+  // Same syntax, several lines ('#' starts a comment); at most kMaxProfileFileBytes.
+  static SpeedProfile load_file(const std::string& path);
 
   void append(const SpeedSegment& seg);                      // queue a segment at the end
   // Replaces everything from time t on with `segs` (the part before t is kept, cut at t).

@@ -109,6 +109,7 @@ TEST(BadFiles, DevZeroFailsFastAsEveryInput) {
       "heat /dev/zero rec.csv --out heat",
       "flash-model /dev/zero --port /dev/null",
       "flash-firmware --device-id 0000de71 --new-key --hex /dev/zero --dry-run --out fw.hex",
+      "sim-module --pty sim.pty --profile-file /dev/zero",  // grew one endless line, never started
   };
   for (const char* c : commands) {
     const auto t0 = std::chrono::steady_clock::now();
@@ -148,6 +149,7 @@ TEST(BadFiles, FilesBeyondTheirLimitAreRefusedWithTheLimitNamed) {
       {"reduce big.json --speeds 6000 --out r.json", "larger than 16 MiB"},
       {"flash-model big.json --port /dev/null", "larger than 16 MiB"},
       {"flash-model names_big_blob.json --port /dev/null", "larger than 64 KiB"},
+      {"heat big.json rec.csv --out heat", "larger than 16 MiB"},
   };
   for (const auto& c : cases) {
     const CliResult r = run_btsm(d, c.args, 20);
@@ -170,7 +172,11 @@ TEST(BadFiles, DeeplyNestedJsonIsRefusedNotACrash) {
   for (const char* f : {"deep.json", "deep_open.json", "deep_field.json"}) {
     for (const std::string& c : {std::string("fit rec.csv --out m.json --network ") + f, std::string("validate ") + f + " rec.csv",
                                 std::string("reduce ") + f + " --speeds 6000 --out r.json",
-                                std::string("flash-model ") + f + " --port /dev/null"}) {
+                                std::string("flash-model ") + f + " --port /dev/null",
+                                // heat and residual --network read a model or a network: they
+                                // parsed with an unguarded reader and overflowed the stack (SIGSEGV)
+                                std::string("heat ") + f + " rec.csv --out heat",
+                                std::string("residual --network ") + f + " --fit rec.csv --check rec.csv"}) {
       const CliResult r = run_btsm(d, c);
       EXPECT_EQ(r.code, 2) << c << "\n" << r.err;
       EXPECT_TRUE(mentions(r, "nested deeper than 64")) << c << "\n" << r.err;
@@ -203,6 +209,29 @@ TEST(BadFiles, ModelValuesOutsideTheNetworkBoundsAreRefusedOnLoad) {
   write_text(d.file("good.json"), spindle4_model_json());
   const CliResult ok = run_btsm(d, "validate good.json rec.csv");
   EXPECT_EQ(ok.code, 0) << ok.err;
+}
+
+// The reduced model (btsm reduce --out) handed where the fitted model belongs is named for what it
+// is, in every command that takes a fitted model; it used to read "needs 'network'" in validate and
+// "unknown field 'blob_hex'" in heat. Another format name is refused as such.
+TEST(BadFiles, AReducedModelWhereTheFittedModelBelongsIsNamed) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  write_text(d.file("reduced.json"), R"({"format": "btsm-reduced-model-2", "blob_hex": "00", "channels": []})");
+  nlohmann::json other = nlohmann::json::parse(spindle4_model_json());
+  other["format"] = "btsm-thermal-model-9";
+  write_text(d.file("other.json"), other.dump());
+  for (const std::string& c : {std::string("validate reduced.json rec.csv"), std::string("reduce reduced.json --speeds 6000 --out r.json"),
+                              std::string("heat reduced.json rec.csv --out heat")}) {
+    const CliResult r = run_btsm(d, c);
+    EXPECT_EQ(r.code, 2) << c << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, "a reduced model ('btsm-reduced-model-2'")) << c << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, "btsm fit --out")) << c << "\n" << r.err;
+  }
+  const CliResult r = run_btsm(d, "validate other.json rec.csv");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_TRUE(mentions(r, "format 'btsm-thermal-model-9' is not a fitted model")) << r.err;
+  EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
 // Row 9: `validate` on a recording of one row, or with every temperature empty, printed nan and
