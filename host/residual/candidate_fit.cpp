@@ -122,10 +122,18 @@ void fill_evidence(const CandidateContext& ctx, const AugmentedModel& am, const 
   cr.params.clear();
   for (const auto& name : am.effect_params) {
     const auto& est = fr.estimates[static_cast<std::size_t>(am.net.param_index(name))];
-    cr.params.push_back({est.name, est.unit, est.value, est.sigma, est.at_bound ? "at its bound" : th::identifiability_name(est.status)});
+    cr.params.push_back({est.name, est.unit, est.value, est.sigma, est.at_bound ? "at its bound" : th::identifiability_name(est.status),
+                         base_confounding(am.net, ctx.base->param_count(), fr, name)});
     if (est.at_bound || est.status == th::Identifiability::NotIdentifiable) cr.identifiable = false;
   }
   cr.quantities = effect_quantities(am, spec, *ctx.base, fr.params, fr.covariance);
+  if (spec.kind == EffectKind::HeatSourceTransient) {
+    const auto tau = std::find_if(cr.quantities.begin(), cr.quantities.end(), [](const EffectQuantity& q) { return q.name == "tau_transient"; });
+    if (tau != cr.quantities.end()) {
+      cr.fit_triggers = trigger_coverage(am.net, fit, am.trigger, tau->value);
+      cr.check_triggers = trigger_coverage(am.net, *ctx.check, am.trigger, tau->value);
+    }
+  }
 }
 
 }  // namespace

@@ -5,6 +5,7 @@
 #include "host/residual/claim_lead.hpp"
 #include "host/residual/parallel_tasks.hpp"
 #include "host/residual/residual_tests.hpp"
+#include "host/residual/undecided_reason.hpp"
 #include "host/thermal/column_map.hpp"
 #include "host/thermal/declared_columns.hpp"
 #include "host/thermal/fit_noise_floor.hpp"
@@ -653,9 +654,11 @@ class ResidualLoop {
     // leaves nothing a candidate could explain, not even part of it.
     const bool check_at_floor = L_.before_check.rmse_k <= L_.check_floor_k;
     int best_effect = -1, best_partial = -1;
+    std::vector<std::size_t> judged;  // the candidates this decision judges (their reasons are new)
     for (std::size_t i = 0; i < L_.candidates.size(); ++i) {
       CandidateResult& c = L_.candidates[i];
       if (c.status != "fitted") continue;
+      judged.push_back(i);
       const bool b_ok = c.delta_bic >= o_.bic_margin, z_ok = c.key_z >= o_.param_z, id_ok = c.identifiable,
                  c_ok = c.check_factor >= o_.check_improvement;
       // Explaining = the check error cut >= explained_factor, or brought to within 2x the noise.
@@ -700,12 +703,21 @@ class ResidualLoop {
     for (const NotToldApart& d : keep_claims_with_a_lead(L_.candidates, best_effect, o_.bic_margin, o_.check_improvement))
       say("residual: " + L_.candidates[static_cast<std::size_t>(d.claim)].label + " not claimed: " +
           L_.candidates[static_cast<std::size_t>(d.rival)].label + " explains the held-out part better; the two are not told apart");
+    // Why the fit recordings cannot decide what is not claimed (measured on each refit; nothing
+    // about the decision changes). Not while there is nothing (held-out) to explain.
+    const UndecidedOptions uo = undecided_options();
+    for (std::size_t i : judged) {
+      CandidateResult& c = L_.candidates[i];
+      c.undecided = check_at_floor || !something_to_explain_ ? std::string() : undecided_reason(L_.candidates, i, base_, uo);
+      if (!c.undecided.empty()) c.reason += "; the fit recordings cannot decide it: " + c.undecided;
+    }
     L_.fit_resid_after = L_.fit_resid_before;
     L_.check_resid_after = L_.check_resid_before;
     L_.check_model_after = L_.check_model_before;
     L_.after_fit = L_.before_fit;
     L_.after_check = L_.before_check;
     L_.chosen = best_effect >= 0 ? best_effect : best_partial;
+    L_.undecided.clear();
     if (L_.chosen >= 0) {
       adopt(L_.candidates[static_cast<std::size_t>(L_.chosen)]);
       const auto& c = L_.candidates[static_cast<std::size_t>(L_.chosen)];
@@ -716,6 +728,8 @@ class ResidualLoop {
                            : fmt::format("{} explains part of the residual only (check RMSE {:.4g} -> {:.4g} K, x{:.2f}); "
                                          "reported, not claimed",
                                          c.label, L_.before_check.rmse_k, L_.after_check.rmse_k, c.check_factor);
+      L_.undecided = L_.verdict == "partial" ? undecided_summary(L_.candidates, L_.chosen, base_, uo) : std::string();
+      if (!L_.undecided.empty()) L_.explanation += "; why the fit recordings cannot decide it: " + L_.undecided;
       return;
     }
     if (check_at_floor) {
@@ -735,6 +749,7 @@ class ResidualLoop {
       return;
     }
     L_.verdict = L_.effect = L_.label = "unexplained";
+    L_.undecided = undecided_summary(L_.candidates, -1, base_, uo);
     std::vector<std::pair<double, std::string>> worst;
     for (int c = 0; c < nc(); ++c) {
       const auto& d = L_.diagnostics[static_cast<std::size_t>(c)];
@@ -748,6 +763,19 @@ class ResidualLoop {
       if (std::find(L_.nodes.begin(), L_.nodes.end(), w.second) == L_.nodes.end()) L_.nodes.push_back(w.second);
     L_.explanation = "significant residual structure that no effect of the library explains (no candidate passed BIC, "
                      "significance, identifiability and the check); see the nodes and correlated signals";
+    if (!L_.undecided.empty()) L_.explanation += "; why the fit recordings cannot decide the candidates that cut the check: " + L_.undecided;
+  }
+
+  UndecidedOptions undecided_options() const {
+    UndecidedOptions u;
+    u.check_improvement = o_.check_improvement;
+    u.explained_factor = o_.explained_factor;
+    u.bic_margin = o_.bic_margin;
+    u.param_z = o_.param_z;
+    // the fit recordings' noise floor as the base fit measured it (a module's filter lag included),
+    // else the noise sigma
+    u.noise_k = L_.base_fit.noise_floor_K > 0 ? L_.base_fit.noise_floor_K : L_.noise_sigma_k;
+    return u;
   }
 
   // The chosen candidate's model becomes the "after" model.

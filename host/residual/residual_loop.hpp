@@ -29,8 +29,14 @@
 //      errors are within significant_rms_factor x the noise: there is nothing to explain. Nor
 //      anything, not even `partial`, while the check error is within the check recordings'
 //      measurement floor (LoopResult::check_floor_k): no held-out error is left to explain part of.
+//      A candidate the fit recordings support that cuts the check but is not claimed gets the
+//      measured reason why they cannot decide it (undecided_reason.hpp: a key the base parameters
+//      take over, a fit part fitted to its noise that misses the check, a transient the fit
+//      recordings only start from standstill, rivals that fit alike); a `partial` or
+//      `unexplained` verdict carries those of the candidates that cut the check most.
 #include "host/residual/effects.hpp"
 #include "host/residual/evaluation.hpp"
+#include "host/residual/identifiability.hpp"
 #include "host/residual/residual_stats.hpp"
 #include "host/residual/screening.hpp"
 #include "host/thermal/fit.hpp"
@@ -83,6 +89,7 @@ struct ParamReport {
   std::string name, unit;
   double value = 0, sigma = 0;
   std::string status;            // identifiability of the fitted value
+  BaseConfounding base;          // an effect parameter's ties to the base parameters in the joint refit
 };
 
 struct CandidateResult {
@@ -116,6 +123,11 @@ struct CandidateResult {
   std::vector<int> rest_nodes;    // nodes at the ambient when a recording starts
   std::vector<std::string> key_params, effect_params;  // network names (see AugmentedModel)
   std::vector<std::string> held;  // base parameters held in its refits (the scale, when it adds a capacitance)
+  // heat_source_transient: its triggers in the fit and check recordings at the fitted decay time
+  TriggerCoverage fit_triggers, check_triggers;
+  // why the fit recordings cannot decide this candidate, measured (identifiability.hpp); "" when
+  // nothing says so. Set by the decision for a candidate it does not claim; part of `reason` too.
+  std::string undecided;
   double seconds = 0;
 };
 
@@ -128,6 +140,9 @@ struct LoopResult {
   std::vector<ParamReport> params;
   std::vector<std::string> correlated_signals;  // for "unexplained"
   std::string explanation;
+  // `partial` / `unexplained`: why the fit recordings cannot decide the candidates that cut the
+  // check (undecided_reason.hpp), "" when nothing measured says so; part of `explanation` too
+  std::string undecided;
   double noise_sigma_k = 0;
   // K, what the check recordings' measurement alone may leave: the noise, and for a BTSM module's
   // recordings (metadata `module_id`) the error of a reading up to one sample period late,

@@ -24,8 +24,15 @@ nlohmann::json metrics_json(const ErrorMetrics& m) {
 
 nlohmann::json params_json(const std::vector<ParamReport>& ps) {
   nlohmann::json a = nlohmann::json::array();
-  for (const auto& p : ps)
-    a.push_back({{"name", p.name}, {"unit", p.unit}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"status", p.status}});
+  for (const auto& p : ps) {
+    nlohmann::json pj = {{"name", p.name}, {"unit", p.unit}, {"value", num(p.value)}, {"sigma", num(p.sigma)}, {"status", p.status}};
+    if (!p.base.partner.empty())  // an effect parameter refitted jointly with free base parameters
+      pj["base_confounding"] = {{"multiple_correlation", num(p.base.multiple_correlation)},
+                                {"sigma_inflation", num(p.base.inflation)},
+                                {"most_correlated_with", p.base.partner},
+                                {"correlation", num(p.base.pair_correlation)}};
+    a.push_back(pj);
+  }
   return a;
 }
 
@@ -53,6 +60,7 @@ nlohmann::json to_json(const LoopResult& r) {
   j["quantities"] = quantities_json(r.quantities);
   j["parameters"] = params_json(r.params);
   j["explanation"] = r.explanation;
+  j["undecided"] = r.undecided;
   j["noise_sigma_K"] = num(r.noise_sigma_k);
   j["check_floor_K"] = num(r.check_floor_k);
   j["rmse_before_K"] = num(r.before_check.rmse_k);
@@ -78,6 +86,7 @@ nlohmann::json to_json(const LoopResult& r) {
                          {"status", c.status},
                          {"accepted", c.status == "effect"},
                          {"reason", c.reason},
+                         {"undecided", c.undecided},
                          {"explained_share", num(c.explained_share)},
                          {"screening_score", num(c.screening_score)},
                          {"stability", num(c.stability)}};
@@ -91,6 +100,13 @@ nlohmann::json to_json(const LoopResult& r) {
       cj["identifiable"] = c.identifiable;
       cj["parameters"] = params_json(c.params);
       cj["quantities"] = quantities_json(c.quantities);
+      if (c.fit_triggers.triggers > 0 || c.check_triggers.triggers > 0) {
+        const auto cov = [](const TriggerCoverage& t) {
+          return nlohmann::json{{"triggers", t.triggers}, {"while_running", t.while_running}, {"while_active", t.while_active},
+                                {"max_left", num(t.max_state)}};
+        };
+        cj["trigger_coverage"] = {{"fit", cov(c.fit_triggers)}, {"check", cov(c.check_triggers)}};
+      }
       cj["seconds"] = num(c.seconds);
     }
     j["candidates"].push_back(cj);
@@ -156,6 +172,7 @@ std::string format_table(const LoopResult& r) {
     else
       o << fmt::format("{:>9} {:>10} {:>7} {:>9} {:>6}  {}\n", "", "", "", "", "", c.status);
     if (!c.variant.empty()) o << fmt::format("  {:<46} {}\n", "", c.variant);
+    if (!c.undecided.empty()) o << fmt::format("  {:<46} the fit recordings cannot decide it: {}\n", "", c.undecided);
   }
   o << "\nVerdict: " << r.verdict;
   if (r.verdict == "effect" || r.verdict == "partial") o << " " << r.label;
