@@ -4,6 +4,7 @@
 #include "host/residual/candidate_fit.hpp"
 #include "host/residual/claim_lead.hpp"
 #include "host/residual/parallel_tasks.hpp"
+#include "host/residual/rescreen_rule.hpp"
 #include "host/residual/residual_tests.hpp"
 #include "host/residual/undecided_reason.hpp"
 #include "host/thermal/column_map.hpp"
@@ -119,6 +120,7 @@ class ResidualLoop {
       bp_ = L_.base_fit.params;
       bx0_ = L_.base_fit.initial_states;
       base_free_ = L_.base_fit.free_parameter_count;
+      base_from_restart_ = !L_.base_fit.final_start.empty() && L_.base_fit.final_start != "staged";
       // The staged pipeline restarts from the data; on a model that lacks an effect it can land in
       // a worse minimum than the start it was given. Keep the better one.
       if (start_.size() == base_.param_count() && start_.allFinite()) {
@@ -135,6 +137,7 @@ class ResidualLoop {
           say("residual: the refit base is worse than the given start; keeping the start");
           bp_ = start_;
           bx0_ = x0_start;
+          base_from_restart_ = false;
           L_.base_fit.params = bp_;
           L_.base_fit.initial_states = bx0_;
         }
@@ -420,16 +423,26 @@ class ResidualLoop {
     }
   }
 
-  // Stage 6b': when the re-polished base is far better than the base fit (its rms at most half),
-  // the base fit was in a wrong basin (one distorted probe can drag the staged fit there) and the
-  // screening ran on a linearisation about the wrong model: what it proposed, and where, may be
-  // wrong. So the dictionary is screened again about the better base, and its best proposals not
-  // fitted yet, or fitted to an error above that base's, are refitted jointly from it (their
-  // evidence against the same, better base).
+  // Stage 6b': the screening linearised about the base fit; when the re-polish shows that base sat
+  // in a wrong basin (rescreen_rule.hpp says when), the screening ran about the wrong model. So the
+  // dictionary is screened again about the better base, and its best proposals not fitted yet, or
+  // fitted to an error above that base's, are refitted jointly from it (their evidence against the
+  // same, better base).
   void rescreen_on_repolished_base() {
-    if (!L_.base_repolished || !(L_.before_fit.rmse_k <= 0.5 * base_rms_before_repolish_)) return;
-    say(fmt::format("residual: the re-polished base ({:.4g} K) is far below the base fit ({:.4g} K): screening again about it",
-                    L_.before_fit.rmse_k, base_rms_before_repolish_));
+    BaseMove move;
+    move.base_fit_rms_k = base_rms_before_repolish_;
+    move.repolished_rms_k = L_.before_fit.rmse_k;
+    move.replaced = L_.base_repolished;
+    move.base_fit_restarted = base_from_restart_;
+    const ScreenAgain why = screen_again(move);
+    if (why == ScreenAgain::No) return;
+    if (why == ScreenAgain::FarBelow)
+      say(fmt::format("residual: the re-polished base ({:.4g} K) is far below the base fit ({:.4g} K): screening again about it",
+                      L_.before_fit.rmse_k, base_rms_before_repolish_));
+    else
+      say(fmt::format("residual: the base fit was restarted into another basin ({}) and the re-polish replaced it ({:.4g} -> {:.4g} K): "
+                      "screening again about it",
+                      L_.base_fit.final_start, base_rms_before_repolish_, L_.before_fit.rmse_k));
     propose_candidates();
     ctx_.base_params = bp_;
     ctx_.base_bic = base_bic_;
@@ -820,6 +833,7 @@ class ResidualLoop {
   std::vector<int> free_params_, held_;
   double base_bic_ = 0;
   bool all_white_ = true, something_to_explain_ = false, ambient_refused_ = false, unprobed_tried_ = false;
+  bool base_from_restart_ = false;       // the base fit's final stage was kept from a restart (another basin)
   double base_rms_before_repolish_ = 0;  // K, the base fit's rms on the fit recordings when repolish_base() replaced it
   std::vector<Eigen::MatrixXd> meas_fit_, meas_check_, nodes_fit_, nodes_check_;
   std::vector<std::string> boundaries_, events_, usable_boundaries_, usable_events_;
