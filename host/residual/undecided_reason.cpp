@@ -74,6 +74,27 @@ std::string tied_finding(const CandidateResult& c, const th::Network& base, cons
   return s;
 }
 
+// A key parameter below param_z sigma that the base parameters do not explain: were the base known
+// it would still be below param_z sigma, so the fit recordings themselves hardly excite it.
+std::string unexcited_finding(const CandidateResult& c, const UndecidedOptions& o) {
+  const ParamReport* p = nullptr;  // of the weak keys, the weakest one
+  double z = 0;
+  for (const auto& q : c.params) {
+    if (!is_key(c, q.name) || !(q.sigma > 0)) continue;
+    const double zq = std::abs(q.value) / q.sigma;
+    const double known = zq * (q.base.partner.empty() ? 1.0 : q.base.inflation);
+    if (!(zq < o.param_z && known < o.param_z)) continue;
+    if (p == nullptr || zq < z) {
+      p = &q;
+      z = zq;
+    }
+  }
+  if (p == nullptr) return "";
+  return fmt::format("{}{} is not determined by the fit recordings even with the base known (|z| {:.1f}, {:.1f} were the base known): "
+                     "they hardly excite it",
+                     p->name, p->status == "at its bound" ? " (at its bound)" : "", z, z * (p->base.partner.empty() ? 1.0 : p->base.inflation));
+}
+
 // Fitted to the fit recordings' noise, yet the check is left unexplained: what the check needs is
 // not in the fit part. The parameter the base ties most names the direction the fit part leaves open.
 std::string exhausted_finding(const CandidateResult& c, const UndecidedOptions& o) {
@@ -95,7 +116,7 @@ std::string coverage_finding(const CandidateResult& c, const UndecidedOptions& o
   if (!(f.triggers > 0 && f.while_running == 0 && k.while_running > 0)) return "";
   return fmt::format("the fit recordings start every transient from standstill ({} start(s), no speed change while running), where "
                      "it overlaps the network's own warm-up; the check holds {} speed change(s) while running, where it sits on a "
-                     "warm state: record a speed change while warm (or a start from a warm spindle) to fit it there",
+                     "warm state: a speed change while warm (or a start from a warm spindle) in the fit recordings would decide it",
                      f.triggers, k.while_running);
 }
 
@@ -134,7 +155,7 @@ Findings findings_of(const std::vector<CandidateResult>& all, std::size_t i, con
   // and is not claimed: the question is why the fit part cannot settle it, not whether there is
   // anything at all (a candidate the check refutes is decided, by the check).
   if (!fitted(c) || c.status == "effect" || c.delta_bic < o.bic_margin || !(c.check_factor >= o.check_improvement)) return f;
-  for (const std::string& s : {tied_finding(c, base, o), exhausted_finding(c, o), coverage_finding(c, o)})
+  for (const std::string& s : {tied_finding(c, base, o), unexcited_finding(c, o), exhausted_finding(c, o), coverage_finding(c, o)})
     if (!s.empty()) f.own.push_back(s);
   f.alike = alike_finding(all, i, o);
   return f;
