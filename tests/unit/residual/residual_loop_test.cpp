@@ -58,9 +58,11 @@ class ResidualLoopFamily : public ::testing::TestWithParam<FamilyCase> {};
 // and so does the effect's joint refit (NOT converged, 0.0399 K). With 600 iterations the base
 // stage ends at 0.2048 K (516 iterations), the screening proposes housing + front_bearing, the
 // joint refit reaches the noise (0.004976 K, 333 iterations) and front_bearing is dropped: named
-// at housing, g 1.5 +- 0.0005 W/K, check 0.1627 -> 0.0051 K (x32). Raising the budget moves every
-// refit (and the CPU the speed work cuts); a stage that ends at its budget still improving would
-// need the fit to continue it, which is not done yet.
+// at housing, g 1.5 +- 0.0005 W/K, check 0.1627 -> 0.0051 K (x32). Continuing a joint refit that
+// ends NOT converged once more from where it stopped (tried, not kept) passes too: 0.0399 -> 0.0155
+// K on the fit part, check 0.1600 -> 0.0148 K (x10.8). Either moves every refit that stops at the
+// budget (five of unprobed shaft_01's) and the CPU the speed work cuts, so neither is in before the
+// effect suite is rerun with it.
 bool not_met_yet(const std::string& name) { return name == "second_boundary_housing"; }
 
 TEST_P(ResidualLoopFamily, IsProposedFittedBackNamedAndCutsTheCheckError) {
