@@ -57,7 +57,7 @@ std::vector<NotToldApart> keep_claims_with_a_lead(std::vector<CandidateResult>& 
     c.status = "rejected";
     if (rival.why == Lead::CheckBetter)
       c.reason += fmt::format("; but {} (another family the fit recordings support too, dBIC {:.1f}) explains the held-out part "
-                              "better (check {:.4g} K against {:.4g} K) though it is not claimed itself: the two are not told apart",
+                              "better (check {:.4g} K against {:.4g} K) though it is not significant itself: the two are not told apart",
                               r.label, r.delta_bic, r.check.rmse_k, c.check.rmse_k);
     else
       c.reason += fmt::format("; but {} (another family, passing every test too) fits the fit recordings better (dBIC {:.1f} against "
