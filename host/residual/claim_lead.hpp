@@ -6,10 +6,7 @@
 // significance or identifiability, the data do not tell the two apart: heat at a node no probe
 // measures, a coupling between two nodes and a temperature-dependent source can all bend the same
 // probed columns. Claiming the first would name an effect the data do not single out, so it is not
-// claimed; the next effect in line is judged the same way. Likewise when another family's candidate
-// passes every test too, is supported more by the fit recordings (larger BIC gain) and explains the
-// held-out part within the check's own improvement factor of the claim: the two data sets point
-// different ways and neither singles out one effect.
+// claimed; the next effect in line is judged the same way.
 #include "host/residual/residual_loop.hpp"
 
 #include <vector>

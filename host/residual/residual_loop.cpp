@@ -714,8 +714,8 @@ class ResidualLoop {
       if (c.status == "partial" && better(best_partial)) best_partial = static_cast<int>(i);
     }
     for (const NotToldApart& d : keep_claims_with_a_lead(L_.candidates, best_effect, o_.bic_margin, o_.check_improvement))
-      say("residual: " + L_.candidates[static_cast<std::size_t>(d.claim)].label + " not claimed: not told apart from " +
-          L_.candidates[static_cast<std::size_t>(d.rival)].label + " (another family; the reason says how)");
+      say("residual: " + L_.candidates[static_cast<std::size_t>(d.claim)].label + " not claimed: " +
+          L_.candidates[static_cast<std::size_t>(d.rival)].label + " explains the held-out part better; the two are not told apart");
     // Why the fit recordings cannot decide what is not claimed (measured on each refit; nothing
     // about the decision changes). Not while there is nothing (held-out) to explain.
     const UndecidedOptions uo = undecided_options();

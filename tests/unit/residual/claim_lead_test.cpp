@@ -83,45 +83,6 @@ TEST(ClaimLead, OnlyJudgedRivalsOfAnotherFamilyThatTheFitSupportsCount) {
   EXPECT_EQ(best, -1);
 }
 
-// Effect-suite seed 2026, extra_heat_input_unprobed_shaft_01 (speed-driven heat at the unprobed
-// shaft): coupled_heat@rear_bearing was claimed on the lowest check error, though another family
-// passing every test too fitted the fit recordings far better and the check within 5 %. Neither is
-// singled out: neither is claimed (the second goes by the first rule, the dropped claim now being
-// a rival that explains the held-out part better).
-TEST(ClaimLead, AnotherFamilyTheFitPrefersWithTheCheckAlikeTakesTheClaimAway) {
-  std::vector<CandidateResult> c = {
-      candidate("coupled_heat@rear_bearing", EffectKind::CoupledHeat, "effect", 0.008744, 99621.7, 2.15),
-      candidate("extra_heat_input@rear_bearing+front_bearing", EffectKind::ExtraHeatInput, "effect", 0.009134, 257809.9, 2.06),
-      candidate("coupled_heat@rear_bearing+front_bearing", EffectKind::CoupledHeat, "rejected", 0.0163, 251515.8, 1.15),
-  };
-  int best = 0;
-  const auto dropped = keep_claims_with_a_lead(c, best, kBicMargin, kCheckImprovement);
-  EXPECT_EQ(best, -1);
-  ASSERT_EQ(dropped.size(), 2u);
-  EXPECT_EQ(dropped[0].claim, 0);
-  EXPECT_EQ(dropped[0].rival, 1);
-  EXPECT_EQ(dropped[1].claim, 1);
-  EXPECT_NE(c[0].reason.find("fits the fit recordings better"), std::string::npos) << c[0].reason;
-  EXPECT_NE(c[1].reason.find("explains the held-out part better"), std::string::npos) << c[1].reason;
-
-  // The claim keeps its lead when the check prefers it by the check's own factor, or when the fit
-  // recordings do not prefer the rival (each of 134 claims in the suite runs had the largest BIC gain).
-  std::vector<CandidateResult> far = {
-      candidate("coupled_heat@rear_bearing", EffectKind::CoupledHeat, "effect", 0.008744, 99621.7, 2.15),
-      candidate("extra_heat_input@rear_bearing", EffectKind::ExtraHeatInput, "effect", 0.0110, 257809.9, 1.71),
-  };
-  best = 0;
-  EXPECT_TRUE(keep_claims_with_a_lead(far, best, kBicMargin, kCheckImprovement).empty());
-  EXPECT_EQ(best, 0);
-  std::vector<CandidateResult> weaker = {
-      candidate("temperature_dependent_heat@rear_bearing", EffectKind::TemperatureDependentHeat, "effect", 0.0032, 1116983, 15.0),
-      candidate("coupled_heat@rear_bearing", EffectKind::CoupledHeat, "effect", 0.0034, 906454, 9.2),
-  };
-  best = 0;
-  EXPECT_TRUE(keep_claims_with_a_lead(weaker, best, kBicMargin, kCheckImprovement).empty());
-  EXPECT_EQ(best, 0);
-}
-
 TEST(ClaimLead, TheNextClaimInLineIsJudgedTheSameWay) {
   // B (best) loses to the rival R; A is next in line: R is of another family than A too, so A goes;
   // C is of R's own family and the dropped A and B explain the check worse than C: C stands.
