@@ -624,11 +624,8 @@ class ResidualLoop {
     if (unprobed_tried_ || !wanted(EffectKind::ExtraHeatInput)) return 0;
     unprobed_tried_ = true;
     std::vector<int> unprobed;
-    for (int n = 0; n < base_.node_count(); ++n) {
-      bool probed = false;
-      for (const auto& m : base_.measurements) probed = probed || m.node == n;
-      if (!probed) unprobed.push_back(n);
-    }
+    for (int n = 0; n < base_.node_count(); ++n)
+      if (!base_.has_probe(n)) unprobed.push_back(n);
     ctx_.base_params = bp_;
     ctx_.base_bic = base_bic_;
     ctx_.before_check = L_.before_check;

@@ -18,17 +18,14 @@ std::vector<std::string> unprobed_nodes_of(const CandidateResult& c, const th::N
   std::vector<std::string> out;
   for (const auto& n : c.nodes) {
     const int i = base.node_index(n);
-    if (i < 0) continue;
-    bool probed = false;
-    for (const auto& m : base.measurements) probed = probed || m.node == i;
-    if (!probed) out.push_back(n);
+    if (i >= 0 && !base.has_probe(i)) out.push_back(n);
   }
   return out;
 }
 
-std::string join(const std::vector<std::string>& v) {
+std::string join(const std::vector<std::string>& v, const char* sep = ", ") {
   std::string s;
-  for (const auto& x : v) s += (s.empty() ? "" : ", ") + x;
+  for (const auto& x : v) s += (s.empty() ? "" : sep) + x;
   return s;
 }
 
@@ -161,18 +158,12 @@ Findings findings_of(const std::vector<CandidateResult>& all, std::size_t i, con
   return f;
 }
 
-std::string joined(const std::vector<std::string>& v) {
-  std::string out;
-  for (const auto& s : v) out += (out.empty() ? "" : "; ") + s;
-  return out;
-}
-
 }  // namespace
 
 std::string undecided_reason(const std::vector<CandidateResult>& all, std::size_t i, const th::Network& base, const UndecidedOptions& o) {
   Findings f = findings_of(all, i, base, o);
   if (!f.alike.empty()) f.own.push_back(f.alike);
-  return joined(f.own);
+  return join(f.own, "; ");
 }
 
 std::string undecided_summary(const std::vector<CandidateResult>& all, int chosen, const th::Network& base, const UndecidedOptions& o) {
@@ -192,7 +183,7 @@ std::string undecided_summary(const std::vector<CandidateResult>& all, int chose
     Findings f = findings_of(all, idx[k], base, o);
     if (k == 0 && !f.alike.empty()) f.own.push_back(f.alike);
     if (f.own.empty()) continue;
-    out += (out.empty() ? "" : "; and ") + all[idx[k]].label + ": " + joined(f.own);
+    out += (out.empty() ? "" : "; and ") + all[idx[k]].label + ": " + join(f.own, "; ");
     ++named;
   }
   return out;

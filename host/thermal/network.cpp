@@ -153,6 +153,12 @@ int Network::node_index(const std::string& n) const {
   return -1;
 }
 
+bool Network::has_probe(int node) const {
+  for (const Measurement& m : measurements)
+    if (m.node == node) return true;
+  return false;
+}
+
 int Network::add_parameter(const Parameter& p) {
   if (param_index(p.name) >= 0) throw std::invalid_argument("network " + name + ": parameter '" + p.name + "' already exists");
   params.push_back(p);

@@ -142,6 +142,7 @@ struct Network {
   int param_count() const { return static_cast<int>(params.size()); }
   int param_index(const std::string& name) const;   // -1 if absent
   int node_index(const std::string& name) const;    // -1 if absent
+  bool has_probe(int node) const;                   // some measurement reads this node
   Mode mode_at(double speed_rpm) const { return speed_rpm > operating_above_rpm ? Mode::Operating : Mode::Cooling; }
   // Appends a parameter (name must be new); returns its index.
   int add_parameter(const Parameter& p);
