@@ -4,6 +4,7 @@
 #include "host/residual/candidate_fit.hpp"
 #include "host/residual/claim_lead.hpp"
 #include "host/residual/parallel_tasks.hpp"
+#include "host/residual/refit_selection.hpp"
 #include "host/residual/rescreen_rule.hpp"
 #include "host/residual/residual_tests.hpp"
 #include "host/residual/undecided_reason.hpp"
@@ -338,14 +339,17 @@ class ResidualLoop {
     ctx.joint_iterations = o_.refine_iterations;
     ctx.param_z = o_.param_z;
     ctx.progress = o_.progress;
+    // the best proposals, and distinct explanations while they repeat one (refit_selection.hpp)
     const auto& proposals = L_.screening.proposals;
-    const std::size_t fitted = std::min<std::size_t>(proposals.size(), static_cast<std::size_t>(std::max(o_.max_candidates, 0)));
-    for (CandidateResult& c : refit_in_parallel({proposals.begin(), proposals.begin() + static_cast<std::ptrdiff_t>(fitted)}))
-      L_.candidates.push_back(std::move(c));
-    for (std::size_t i = fitted; i < proposals.size(); ++i) {
+    const RefitSelection sel = select_refits(proposals, o_.max_candidates);
+    std::vector<Proposal> todo;
+    for (std::size_t i : sel.refit) todo.push_back(proposals[i]);
+    for (CandidateResult& c : refit_in_parallel(todo)) L_.candidates.push_back(std::move(c));
+    for (std::size_t i = 0; i < proposals.size(); ++i) {
+      if (sel.reason[i].empty()) continue;
       CandidateResult c = candidate_of(proposals[i], base_);
       c.status = "not fitted";
-      c.reason = fmt::format("screening score {:.0f} below the {} best proposals", proposals[i].score, o_.max_candidates);
+      c.reason = sel.reason[i];
       L_.candidates.push_back(c);
     }
   }
@@ -447,10 +451,9 @@ class ResidualLoop {
     ctx_.base_params = bp_;
     ctx_.base_bic = base_bic_;
     ctx_.before_check = L_.before_check;
-    int fitted = 0;
     std::vector<Proposal> todo;
-    for (const Proposal& p : L_.screening.proposals) {
-      if (fitted >= o_.max_candidates) break;
+    for (std::size_t i : select_refits(L_.screening.proposals, o_.max_candidates).refit) {
+      const Proposal& p = L_.screening.proposals[i];
       const std::string label = effect_label(p.spec, base_);
       bool done = false;
       for (auto& c : L_.candidates) {
@@ -460,7 +463,6 @@ class ResidualLoop {
         done = (c.status == "fitted" && !stuck) || c.status == "refused";
         if (c.status == "not fitted" || stuck) c.status = "superseded";  // refitted below
       }
-      ++fitted;
       if (!done) todo.push_back(p);
     }
     for (CandidateResult& c : refit_in_parallel(todo, "the re-polished base")) L_.candidates.push_back(std::move(c));

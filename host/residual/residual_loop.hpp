@@ -11,7 +11,9 @@
 //   5. proposals: the linear screening of the effect dictionary (screening.hpp): per family the
 //      variant and nodes, their coefficients, the share of the residual they explain and how
 //      stable that choice is under resampling
-//   6. joint refits: each proposal (the best `max_candidates`) refitted with ALL base parameters
+//   6. joint refits: each proposal (the best `max_candidates`, and further ones while those repeat
+//      a family at the same nodes, until `max_candidates` distinct explanations are refitted:
+//      refit_selection.hpp) refitted with ALL base parameters
 //      from several starts (the trace regression's values; a second time constant or a zero
 //      start), the best kept
 //      then the base alone is refitted from the best refit's base values and replaces the base
@@ -59,7 +61,7 @@ struct LoopOptions {
   double whiteness_p = 0.01;            // Ljung-Box level (Bonferroni-corrected over channels)
   double significant_rms_factor = 2.0;  // residual rms above this x noise sigma = something to explain
   double correlation_p = 1e-3;          // a candidate signal is "correlated" below this p-value
-  int max_candidates = 4;               // proposals refitted jointly (best screening score first)
+  int max_candidates = 4;               // proposals, and distinct explanations (family + nodes), refitted jointly (refit_selection.hpp)
   std::vector<EffectKind> effects;      // families to try; empty = the whole library
   bool fit_base = true;                 // false: use the given parameter values as the base model
   double trace_step_s = 0;              // inverse-heat step for the trace; 0 = max(60 s, 10 samples)
@@ -99,8 +101,8 @@ struct CandidateResult {
   std::string variant;            // e.g. "additive, every speed increase, tau 20 min"
   EffectSpec spec;
   // "effect" (passes and explains), "partial" (passes, explains part), "rejected" (fitted, fails
-  // a test), "refused" (the fit recordings cannot identify it), "not fitted" (proposed, below the
-  // `max_candidates` best), "failed" (the fit threw)
+  // a test), "refused" (the fit recordings cannot identify it), "not fitted" (proposed, not selected
+  // for a refit: refit_selection.hpp; the reason says why), "failed" (the fit threw)
   std::string status;
   std::string reason;
   // screening evidence

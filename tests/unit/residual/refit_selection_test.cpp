@@ -1,0 +1,113 @@
+// Which proposals the residual loop refits (host/residual/refit_selection.hpp). The first list is
+// the screening of effect-suite seed 2026 heat_source_transient additive_01 (scores as logged):
+// the true transient at rear_bearing alone ranked 5th behind two variants of one explanation.
+#include "host/residual/refit_selection.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+#include <vector>
+
+namespace btsm::residual {
+namespace {
+
+// spindle4 node indices: rear_bearing 0, housing 1, front_bearing 2, shaft 3 (only equality matters here)
+constexpr int kRear = 0, kFront = 2;
+
+Proposal proposal(EffectKind k, std::vector<int> nodes, double score, std::string variant, std::string column = "", bool second = false) {
+  Proposal p;
+  p.spec.kind = k;
+  p.spec.nodes = std::move(nodes);
+  p.spec.column = std::move(column);
+  p.variant = std::move(variant);
+  p.score = score;
+  p.alternative = second;
+  return p;
+}
+
+std::vector<Proposal> seed2026_transient_case() {
+  return {
+      proposal(EffectKind::ExtraHeatInput, {kRear}, 420, "(w/w0)^0 while running"),
+      proposal(EffectKind::ExtraHeatInput, {kRear}, 418, "(w/w0)^2 while running", "", true),
+      proposal(EffectKind::TemperatureDependentHeat, {kRear}, 381, "heat x friction law x own rise"),
+      proposal(EffectKind::HeatSourceTransient, {kRear, kFront}, 232, "x friction law, every speed increase, tau 20 min"),
+      proposal(EffectKind::HeatSourceTransient, {kRear}, 225, "additive, every start or speed change, tau 40 min", "", true),
+      proposal(EffectKind::CoupledHeat, {kRear, kFront}, 223, "(w/w0) x (rear_bearing - housing)"),
+      proposal(EffectKind::CoupledHeat, {kRear, kFront}, 166, "(w/w0) x (rear_bearing - shaft)", "", true),
+      proposal(EffectKind::SensorDrift, {}, 21, "linear in time, own offset per recording", "T1"),
+      proposal(EffectKind::SensorLag, {}, 8, "first-order lag, tau 4 min", "T2"),
+  };
+}
+
+TEST(RefitSelection, ADistinctExplanationRankedBelowTwoVariantsOfOneIsRefitted) {
+  const auto ps = seed2026_transient_case();
+  const RefitSelection s = select_refits(ps, 4);
+  // the four best (both extra_heat_input variants kept) and the transient at rear_bearing alone:
+  // four distinct explanations; the coupled heat (a fifth) is not refitted
+  EXPECT_EQ(s.refit, (std::vector<std::size_t>{0, 1, 2, 3, 4}));
+  ASSERT_EQ(s.reason.size(), ps.size());
+  for (std::size_t i : s.refit) EXPECT_EQ(s.reason[i], "") << i;
+  EXPECT_NE(s.reason[5].find("below the 4 best distinct explanations"), std::string::npos) << s.reason[5];
+  EXPECT_NE(s.reason[8].find("score 8 below the 4 best proposals"), std::string::npos) << s.reason[8];
+}
+
+TEST(RefitSelection, FourDistinctBestProposalsAreExactlyWhatIsRefitted) {
+  auto ps = seed2026_transient_case();
+  ps.erase(ps.begin() + 1);  // without the second extra_heat_input variant the four best are distinct
+  const RefitSelection s = select_refits(ps, 4);
+  EXPECT_EQ(s.refit, (std::vector<std::size_t>{0, 1, 2, 3}));
+}
+
+TEST(RefitSelection, ASecondVariantAmongTheBestIsKeptAndOneBelowThemIsNotRefittedAgain) {
+  // a transient whose other trigger ranks 2nd (kept: it often passes where the best fails), and a
+  // second coupling variant below the best four that repeats an explanation already refitted
+  const std::vector<Proposal> ps = {
+      proposal(EffectKind::HeatSourceTransient, {kRear}, 95, "x friction law, every start or speed change, tau 20 min"),
+      proposal(EffectKind::HeatSourceTransient, {kRear}, 92, "additive, every speed increase, tau 80 min", "", true),
+      proposal(EffectKind::LatentMass, {kRear}, 64, "mass tied to the node, tau 60 min"),
+      proposal(EffectKind::CoupledHeat, {kRear}, 32, "(w/w0) x (housing - front_bearing)"),
+      proposal(EffectKind::CoupledHeat, {kRear}, 21, "(w/w0) x (front_bearing - shaft)", "", true),
+      proposal(EffectKind::ExtraHeatInput, {kRear}, 4, "(w/w0)^2 while running"),
+  };
+  const RefitSelection s = select_refits(ps, 4);
+  EXPECT_EQ(s.refit, (std::vector<std::size_t>{0, 1, 2, 3, 5}));
+  EXPECT_NE(s.reason[4].find("its family and nodes are refitted in the variant '(w/w0) x (housing - front_bearing)' (score 32)"),
+            std::string::npos)
+      << s.reason[4];
+}
+
+TEST(RefitSelection, ANewExplanationTheScreeningDoesNotSelectIsNotRefitted) {
+  const std::vector<Proposal> ps = {
+      proposal(EffectKind::AmbientDynamics, {}, 34, "lagged ambient, tau 60 min"),
+      proposal(EffectKind::HeatSourceTransient, {kRear, kFront}, 15, "x friction law, every start or speed change, tau 40 min"),
+      proposal(EffectKind::HeatSourceTransient, {kRear, kFront}, 10, "additive, every speed increase, tau 40 min", "", true),
+      proposal(EffectKind::LatentMass, {kRear}, -1, "mass tied to the node, tau 10 min"),
+      proposal(EffectKind::CoupledHeat, {kRear}, -2, "(w/w0) x (housing - front_bearing)"),
+  };
+  const RefitSelection s = select_refits(ps, 4);
+  EXPECT_EQ(s.refit, (std::vector<std::size_t>{0, 1, 2, 3}));  // the best four whatever their score
+  EXPECT_NE(s.reason[4].find("not selected by the screening's criterion (score <= 0)"), std::string::npos) << s.reason[4];
+}
+
+TEST(RefitSelection, AnExplanationIsTheFamilyItsNodesInAnyOrderAndItsColumn) {
+  EXPECT_TRUE(same_explanation(proposal(EffectKind::CoupledHeat, {kRear, kFront}, 1, "a").spec,
+                               proposal(EffectKind::CoupledHeat, {kFront, kRear}, 1, "b").spec));
+  EXPECT_FALSE(same_explanation(proposal(EffectKind::CoupledHeat, {kRear, kFront}, 1, "a").spec,
+                                proposal(EffectKind::CoupledHeat, {kRear}, 1, "a").spec));
+  EXPECT_FALSE(same_explanation(proposal(EffectKind::CoupledHeat, {kRear}, 1, "a").spec,
+                                proposal(EffectKind::ExtraHeatInput, {kRear}, 1, "a").spec));
+  // two probes' lags are two explanations; so are links to two declared boundary columns
+  EXPECT_FALSE(same_explanation(proposal(EffectKind::SensorLag, {}, 1, "a", "T2").spec, proposal(EffectKind::SensorLag, {}, 1, "a", "T5").spec));
+  EXPECT_FALSE(same_explanation(proposal(EffectKind::SecondBoundary, {kRear}, 1, "a", "coolant").spec,
+                                proposal(EffectKind::SecondBoundary, {kRear}, 1, "a", "oil").spec));
+}
+
+TEST(RefitSelection, NoBudgetRefitsNothingAndSaysWhy) {
+  const auto ps = seed2026_transient_case();
+  const RefitSelection s = select_refits(ps, 0);
+  EXPECT_TRUE(s.refit.empty());
+  for (const auto& r : s.reason) EXPECT_FALSE(r.empty());
+}
+
+}  // namespace
+}  // namespace btsm::residual
