@@ -452,7 +452,8 @@ class ResidualLoop {
     ctx_.base_bic = base_bic_;
     ctx_.before_check = L_.before_check;
     std::vector<Proposal> todo;
-    for (std::size_t i : select_refits(L_.screening.proposals, o_.max_candidates).refit) {
+    const RefitSelection sel = select_refits(L_.screening.proposals, o_.max_candidates);  // as the first screening's
+    for (std::size_t i : sel.refit) {
       const Proposal& p = L_.screening.proposals[i];
       const std::string label = effect_label(p.spec, base_);
       bool done = false;
