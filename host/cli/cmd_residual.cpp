@@ -142,7 +142,7 @@ void register_residual_commands(CLI::App& app) {
   cmd->add_option("--param-z", a->opts.param_z, "Required |parameter| / sigma of the effect's key parameters (default 3)");
   cmd->add_option("--max-candidates", a->opts.max_candidates, "Proposals refitted jointly, best screening score first; while they repeat a family at the same nodes, further distinct ones until this many distinct explanations are refitted (default 4)");
   cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations of each start's effect-only stage (default 60)");
-  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations of each joint refit and of the base fit (default 300)");
+  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations of each joint refit and of the base fit (default 300; one still descending at it goes on in chunks of 100 while a chunk gains > 0.1 %, up to 3x)");
   cmd->add_option("--refit-step", a->opts.refit_step_s,
                   "Step [s] of the decimated fit recordings the candidate refits run on; the chosen one is polished at full rate (default 10)")
       ->check(CLI::PositiveNumber);

@@ -127,6 +127,11 @@ void fill_evidence(const CandidateContext& ctx, const AugmentedModel& am, const 
     if (est.at_bound || est.status == th::Identifiability::NotIdentifiable) cr.identifiable = false;
   }
   cr.quantities = effect_quantities(am, spec, *ctx.base, fr.params, fr.covariance);
+  if (!fr.stages.empty()) {
+    cr.refit_iterations = fr.stages.back().iterations;
+    cr.refit_continuations = fr.stages.back().continuations;
+  }
+  cr.refit_converged = fr.converged;
   if (spec.kind == EffectKind::HeatSourceTransient) {
     const auto tau = std::find_if(cr.quantities.begin(), cr.quantities.end(), [](const EffectQuantity& q) { return q.name == "tau_transient"; });
     if (tau != cr.quantities.end()) {
@@ -212,6 +217,7 @@ th::FitOptions joint_options(const CandidateContext& ctx, const AugmentedModel& 
   f.start = start;
   f.relative_tolerance = 1e-9;
   f.max_iterations = ctx.joint_iterations;
+  f.continuation = ctx.joint_continuation;
   f.extra_heat_w = impulses_for(am, recs);
   f.initial_state_at_ambient = am.rest_nodes;
   f.hold = held_for(ctx, am);
@@ -458,8 +464,9 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     th::FitResult fr = best;
     if (ctx.fit_base) {
       fr = joint(am, best.params);
-      say(fmt::format("residual:     {} joint refit: rms {:.4g} K, {} ({} iterations)", cr.label, fr.rms_K,
-                      fr.converged ? "converged" : "NOT converged", fr.stages.empty() ? 0 : fr.stages.back().iterations));
+      say(fmt::format("residual:     {} joint refit: rms {:.4g} K, {} ({} iterations, {} chunk(s) past the budget)", cr.label, fr.rms_K,
+                      fr.converged ? "converged" : "NOT converged", fr.stages.empty() ? 0 : fr.stages.back().iterations,
+                      fr.stages.empty() ? 0 : fr.stages.back().continuations));
     }
     // Backward elimination of nodes: the screening proposes up to max_nodes nodes from a linear
     // view; a node whose share of the effect the joint refit cannot tell from zero is dropped and

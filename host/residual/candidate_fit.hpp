@@ -26,6 +26,7 @@ struct CandidateContext {
   bool fit_base = true;             // false: only the effect's parameters are fitted
   int effect_iterations = 60;       // Levenberg-Marquardt iterations of each start's effect-only stage
   int joint_iterations = 300;       // ... of the joint refit from the best start
+  thermal::BudgetContinuation joint_continuation;  // ... and past it while it still gains (LoopOptions::refit_continuation)
   double param_z = 3.0;             // a node whose key parameter is below this |value| / sigma is dropped
   std::function<void(const std::string&)> progress;
 };

@@ -115,6 +115,7 @@ class ResidualLoop {
       // short of its optimum hands each candidate the rest of the base fit as a spurious gain.
       fo.max_iterations = std::max({o_.max_iterations, o_.refine_iterations, 60});
       fo.start_iterations = fo.max_iterations;
+      fo.continuation = o_.refit_continuation;
       fo.progress = [this](const std::string& s) { say("residual: base fit: " + s); };
       if (start_.size() == base_.param_count()) fo.start = start_;
       L_.base_fit = th::fit_network(base_, fit_, fo);
@@ -337,6 +338,7 @@ class ResidualLoop {
     ctx.free_params = free_params_;
     ctx.effect_iterations = o_.max_iterations;
     ctx.joint_iterations = o_.refine_iterations;
+    ctx.joint_continuation = o_.refit_continuation;
     ctx.param_z = o_.param_z;
     ctx.progress = o_.progress;
     // the best proposals, and distinct explanations while they repeat one (refit_selection.hpp)
@@ -385,6 +387,7 @@ class ResidualLoop {
     fo.staged = false;
     fo.start = L_.candidates[static_cast<std::size_t>(best)].values.head(base_.param_count());
     fo.max_iterations = o_.refine_iterations;
+    fo.continuation = o_.refit_continuation;
     th::FitResult f;
     try {
       f = th::fit_network(base_, fit_refit_, fo);

@@ -67,6 +67,14 @@ struct LoopOptions {
   double trace_step_s = 0;              // inverse-heat step for the trace; 0 = max(60 s, 10 samples)
   int max_iterations = 60;              // Levenberg-Marquardt iterations of the effect-only start stage
   int refine_iterations = 300;          // ... of each joint refit (and the base fit's budget)
+  // ... and past it: a joint refit or the base fit's final stage that reaches the budget while its
+  // cost still falls goes on in chunks of 100 iterations while a chunk lowers the cost by more than
+  // 0.1 %, up to 3x the budget (thermal/fit.hpp, BudgetContinuation). WHY: the decision compares
+  // fit and check errors of each refit with the base's; one stopped on a slope is judged at a
+  // point that is not its minimum (the test case second_boundary_housing: its refit stopped at
+  // 0.0399 K on the fit part, check x4.7 < 5; continued, 0.0155 K and x10.8), and a base stopped
+  // short hands every candidate the rest of the base fit as a spurious gain.
+  thermal::BudgetContinuation refit_continuation{3.0, 100, 1e-3};
   double refit_step_s = 10;             // s, the refits run on the fit recordings decimated to this step
   unsigned threads = 0;                 // independent refits run at once (0 = the machine's cores); the result does not depend on it
   ScreeningOptions screening;
@@ -130,6 +138,11 @@ struct CandidateResult {
   // why the fit recordings cannot decide this candidate, measured (identifiability.hpp); "" when
   // nothing says so. Set by the decision for a candidate it does not claim; part of `reason` too.
   std::string undecided;
+  // the joint refit its evidence comes from: Levenberg-Marquardt iterations in all, chunks past
+  // the budget (LoopOptions::refit_continuation), and whether it ended at a minimum
+  int refit_iterations = 0;
+  int refit_continuations = 0;
+  bool refit_converged = false;
   double seconds = 0;
 };
 

@@ -107,6 +107,9 @@ nlohmann::json to_json(const LoopResult& r) {
         };
         cj["trigger_coverage"] = {{"fit", cov(c.fit_triggers)}, {"check", cov(c.check_triggers)}};
       }
+      cj["refit_iterations"] = c.refit_iterations;
+      cj["refit_continuations"] = c.refit_continuations;
+      cj["refit_converged"] = c.refit_converged;
       cj["seconds"] = num(c.seconds);
     }
     j["candidates"].push_back(cj);

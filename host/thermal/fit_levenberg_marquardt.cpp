@@ -57,6 +57,7 @@ LmOutcome solve_once(OutputErrorProblem& pr, const LmOptions& opts) {
         mu *= 4.0;
       }
     }
+    out.cost_by_iteration.push_back(ev.cost);
     if (!accepted) {  // no decrease possible any more: at a (local) minimum
       out.converged = true;
       evaluator.evaluate(u, false);  // leave pr.p / pr.x0 at u
@@ -84,6 +85,7 @@ LmOutcome levenberg_marquardt(OutputErrorProblem& pr, const LmOptions& opts) {
     LmOutcome r = solve_once(pr, again);
     const bool gained = r.ev.ssr < o.ev.ssr * (1 - 1e-6);
     r.iterations += o.iterations;
+    r.cost_by_iteration.insert(r.cost_by_iteration.begin(), o.cost_by_iteration.begin(), o.cost_by_iteration.end());
     o = std::move(r);
     if (!gained) break;
   }

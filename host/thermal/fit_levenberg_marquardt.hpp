@@ -6,6 +6,8 @@
 
 #include <Eigen/Core>
 
+#include <vector>
+
 namespace btsm::thermal::fitting {
 
 struct LmOptions {
@@ -21,6 +23,9 @@ struct LmOutcome {
   Eigen::VectorXd u;   // the unknowns at the solution (see fit_output_error.hpp)
   int iterations = 0;  // over all restarts
   bool converged = false;
+  // The cost (Evaluation::cost) at the end of each iteration, over all restarts: how fast
+  // the solve was still descending when it stopped (fit.cpp's continuation past the budget).
+  std::vector<double> cost_by_iteration;
 };
 
 // Solves from the problem's current values, which it leaves at the solution.
