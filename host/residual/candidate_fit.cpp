@@ -345,10 +345,17 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     // on it; the staged pipeline of (4) takes the drifted readings at face value in its
     // equation-error stages. For a probe's lag whose column carries most of the base residual: the
     // base fitted without that probe, then the effect alone on it.
-    struct Start { Proposal p; bool pinned, on_best_base; const char* what; bool staged = false; bool without_probe = false; };
+    // (6) Given the base values of a candidate fitted before (ctx.other_base_params), the staged
+    // pipeline of (4) once more from them: the base fit absorbed the effect into its own values, a
+    // candidate that explains most of the residual elsewhere has given much of that back, and
+    // the staged stages hold part of their start (an unprobed node's heat: the base fit's basin and
+    // the data-driven one both leave it in the neighbours' sources).
+    struct Start { Proposal p; bool pinned, on_best_base; std::string what; bool staged = false; bool without_probe = false; bool other_base = false; };
     std::vector<Start> starts{{p, false, false, "base fit"}};
     if (ctx.fit_base) starts.push_back({p, true, false, "base refitted around the screening's effect"});
     if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag) starts.push_back({p, false, false, "staged fit of base + effect from the data", true});
+    if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag && ctx.other_base_params.size() == base.param_count())
+      starts.push_back({p, false, false, "staged fit from the base of " + ctx.other_base_from, true, false, true});
     if (ctx.fit_base && p.spec.kind == EffectKind::SensorDrift)
       starts.push_back({p, false, false, "base fitted on the probe with the drift so far taken off", false, true});
     if (ctx.fit_base && p.spec.kind == EffectKind::SensorLag) {
@@ -378,7 +385,7 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
         q.spec.tau_s = p.spec.tau_s * 2.5;
         starts.push_back({q, false, true, "second time constant"});
       }
-      Eigen::VectorXd base_values = starts[s].on_best_base ? best_base : ctx.base_params;
+      Eigen::VectorXd base_values = starts[s].on_best_base ? best_base : starts[s].other_base ? ctx.other_base_params : ctx.base_params;
       if (starts[s].without_probe) {
         try {
           const bool drift = p.spec.kind == EffectKind::SensorDrift && std::isfinite(best_rms);

@@ -28,6 +28,10 @@ struct CandidateContext {
   int joint_iterations = 300;       // ... of the joint refit from the best start
   thermal::BudgetContinuation joint_continuation;  // ... and past it while it still gains (LoopOptions::refit_continuation)
   double param_z = 3.0;             // a node whose key parameter is below this |value| / sigma is dropped
+  // Base values of a candidate fitted before (empty: none): one more staged start runs from them,
+  // named after `other_base_from` (refit_candidate says why).
+  Eigen::VectorXd other_base_params;
+  std::string other_base_from;
   std::function<void(const std::string&)> progress;
 };
 

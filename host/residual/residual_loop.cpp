@@ -68,6 +68,7 @@ class ResidualLoop {
     prune_chosen_on_check();
     polish_chosen();
     challenge_sensor_claim();
+    challenge_heat_claim();
     try_unprobed_heat();
     L_.seconds = std::chrono::duration<double>(std::chrono::steady_clock::now() - t_start_).count();
     say(fmt::format("residual: verdict {} ({}) in {:.1f} s", L_.verdict, L_.label, L_.seconds));
@@ -612,6 +613,27 @@ class ResidualLoop {
     }
   }
 
+  // Stage 7c': the same holds for a heat-side claim (a coupling, a temperature-dependent or extra
+  // source at a probed node): heat at a node no probe measures reaches the probes only through the
+  // links, so a source at a probed neighbour, or one that follows a temperature difference to the
+  // unprobed node, bends the same columns and can pass on its own. Before such a claim is named,
+  // speed-driven heat at each unprobed node is refitted on the same evidence and the decision is
+  // taken again: the held-out check (and the lead rules) choose between them. Without an unprobed
+  // node nothing is refitted and the claim stands as decided.
+  void challenge_heat_claim() {
+    if (L_.verdict != "effect") return;  // partial and unexplained verdicts: try_unprobed_heat
+    const int claim = L_.chosen;
+    if (refit_unprobed_heat("rival of the claim at an unprobed node") == 0) return;
+    reopen_verdicts();
+    decide();
+    if (L_.chosen == claim) return;
+    say(L_.chosen >= 0 ? "residual: heat at an unprobed node explains the held-out part better than " +
+                             L_.candidates[static_cast<std::size_t>(claim)].label
+                       : "residual: " + L_.candidates[static_cast<std::size_t>(claim)].label +
+                             " is no longer claimed once heat at an unprobed node is refitted as its rival");
+    if (L_.chosen >= 0) polish_chosen();
+  }
+
   // Stage 7d: for the same reason (the screening hardly sees heat at a node no probe measures), a
   // decision that ends without a claim (`unexplained`, or `partial`: a held-out error is left) while
   // the network has unprobed nodes is taken again with speed-driven heat at each of them refitted.
@@ -647,11 +669,33 @@ class ResidualLoop {
         p.variant = fmt::format("(w/w0)^{:g} while running, {}", e, why);
         rivals.push_back(std::move(p));
       }
+    // The base fit holds the unprobed node's heat in its own values, so each rival starts also from
+    // the base of the candidate that fits the fit recordings best (refit_candidate, start 6).
+    const int donor = best_fitting_candidate();
+    if (donor >= 0) {
+      const CandidateResult& d = L_.candidates[static_cast<std::size_t>(donor)];
+      ctx_.other_base_params = d.values.head(base_.param_count());
+      ctx_.other_base_from = d.label;
+    }
     for (CandidateResult& c : refit_in_parallel(rivals)) {
       if (c.status == "fitted") ++fitted;
       L_.candidates.push_back(std::move(c));
     }
+    ctx_.other_base_params.resize(0);
+    ctx_.other_base_from.clear();
     return fitted;
+  }
+
+  // The fitted candidate with the lowest rms on the fit recordings (-1: none).
+  int best_fitting_candidate() const {
+    int best = -1;
+    for (std::size_t i = 0; i < L_.candidates.size(); ++i) {
+      const CandidateResult& c = L_.candidates[i];
+      const bool fitted = c.status == "fitted" || c.status == "effect" || c.status == "partial" || c.status == "rejected";
+      if (!fitted || c.values.size() < base_.param_count()) continue;
+      if (best < 0 || c.fit.rmse_k < L_.candidates[static_cast<std::size_t>(best)].fit.rmse_k) best = static_cast<int>(i);
+    }
+    return best;
   }
 
   // Candidates judged before are judged again by the next decide(): their verdicts go back to
