@@ -376,13 +376,8 @@ class ResidualLoop {
   // replaces the base model when it is better: every candidate is judged against the best base.
   void repolish_base() {
     if (!o_.fit_base) return;
-    int best = -1;
-    for (std::size_t i = 0; i < L_.candidates.size(); ++i) {
-      const auto& c = L_.candidates[i];
-      if (c.status == "fitted" && c.fit.rmse_k < L_.before_fit.rmse_k && (best < 0 || c.fit.rmse_k < L_.candidates[static_cast<std::size_t>(best)].fit.rmse_k))
-        best = static_cast<int>(i);
-    }
-    if (best < 0) return;
+    const int best = best_fitting_candidate();
+    if (best < 0 || !(L_.candidates[static_cast<std::size_t>(best)].fit.rmse_k < L_.before_fit.rmse_k)) return;
     th::FitOptions fo;
     fo.sum_scores_over_runs = false;  // as the base fit
     fo.staged = false;
