@@ -1,6 +1,8 @@
 // Joint refit of one proposed effect (see candidate_fit.hpp).
 #include "host/residual/candidate_fit.hpp"
 
+#include "host/thermal/fit_starts.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -350,10 +352,19 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     // candidate that explains most of the residual elsewhere has given much of that back, and
     // the staged stages hold part of their start (an unprobed node's heat: the base fit's basin and
     // the data-driven one both leave it in the neighbours' sources).
-    struct Start { Proposal p; bool pinned, on_best_base; std::string what; bool staged = false; bool without_probe = false; bool other_base = false; };
+    // (7) For a proposal flagged start_from_data, the staged pipeline of (4) with no base value
+    // given: every base parameter, and every effect parameter that enters linearly, started by its
+    // equation-error stages. (4) hands the staged pipeline the base fit's values, and a parameter
+    // with a start skips those stages: it is the joint fit from the base fit's basin once more.
+    // Where the base fit is bent by what it lacks (a strong declared coolant: 0.557 K, 101x its
+    // noise floor, with the plant's own base values at 0.028 K), no start near it reaches the
+    // joint optimum, and the staged fit from the data alone does (0.0023 K).
+    struct Start { Proposal p; bool pinned, on_best_base; std::string what; bool staged = false; bool without_probe = false; bool other_base = false; bool from_data = false; };
     std::vector<Start> starts{{p, false, false, "base fit"}};
     if (ctx.fit_base) starts.push_back({p, true, false, "base refitted around the screening's effect"});
     if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag) starts.push_back({p, false, false, "staged fit of base + effect from the data", true});
+    if (ctx.fit_base && p.start_from_data && p.spec.kind != EffectKind::SensorLag)
+      starts.push_back({p, false, false, "staged fit of base + effect from the data alone, no base value given", true, false, false, true});
     if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag && ctx.other_base_params.size() == base.param_count())
       starts.push_back({p, false, false, "staged fit from the base of " + ctx.other_base_from, true, false, true});
     if (ctx.fit_base && p.spec.kind == EffectKind::SensorDrift)
@@ -411,9 +422,23 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
           const int c = largest_capacitance_param(base, ctx.base_params);
           if (c >= 0 && !base.params[static_cast<std::size_t>(c)].fixed) fs.hold.push_back(base.params[static_cast<std::size_t>(c)].name);
         }
+        // (7): no start value (neither FitOptions::start nor the parameter's own `initial`, which
+        // augment() sets to the effect's start) for what the equation-error stages can start
+        th::Network staged_net = am.net;
+        if (starts[s].from_data) {
+          const auto forms = th::fitting::linear_forms(staged_net);
+          for (int i = 0; i < staged_net.param_count(); ++i) {
+            th::Parameter& par = staged_net.params[static_cast<std::size_t>(i)];
+            if (par.fixed || std::find(fs.hold.begin(), fs.hold.end(), par.name) != fs.hold.end()) continue;  // held: keeps its value
+            const bool effect = std::find(am.effect_params.begin(), am.effect_params.end(), par.name) != am.effect_params.end();
+            if (effect && forms[static_cast<std::size_t>(i)] == th::fitting::LinearForm::None) continue;  // needs its start
+            fs.start[i] = std::numeric_limits<double>::quiet_NaN();
+            par.initial_auto = true;
+          }
+        }
         th::FitResult f;
         try {
-          f = th::fit_network(am.net, refit, fs);
+          f = th::fit_network(staged_net, refit, fs);
         } catch (const std::exception& e) {
           say(fmt::format("residual:     {} start {} ({}) failed: {}", cr.label, s + 1, starts[s].what, e.what()));
           continue;

@@ -355,6 +355,37 @@ class ResidualLoop {
       c.reason = sel.reason[i];
       L_.candidates.push_back(c);
     }
+    refit_declared_boundaries_from_data();
+  }
+
+  // Stage 6': a boundary column the recordings declare is an input the base model lacks. A strong
+  // one bends the base fit into a wrong basin; the screening then linearises about the wrong model
+  // and proposes the boundary at the wrong nodes (or ranks it below the refit budget), and every
+  // refit start holds the base fit's values. So when the base fit ends far above its noise floor,
+  // the boundary is refitted at each node in turn with the staged pipeline from the data alone
+  // (refit_candidate, start 7), and the held-out decision judges those refits with the rest.
+  void refit_declared_boundaries_from_data() {
+    if (!o_.fit_base || !wanted(EffectKind::SecondBoundary) || usable_boundaries_.empty()) return;
+    const double floor = L_.base_fit.noise_floor_K;
+    if (!(o_.boundary_from_data_above_noise > 0) || !(floor > 0) ||
+        !(L_.base_fit.rms_K > o_.boundary_from_data_above_noise * floor))
+      return;
+    say(fmt::format("residual: the base fit ends at {:.4g} K, {:.0f}x its noise floor {:.3g} K: each declared boundary is also refitted "
+                    "at every node from the data alone",
+                    L_.base_fit.rms_K, L_.base_fit.rms_K / floor, floor));
+    std::vector<Proposal> each_node;
+    for (const auto& col : usable_boundaries_)
+      for (int n = 0; n < base_.node_count(); ++n) {
+        Proposal p;
+        p.spec.kind = EffectKind::SecondBoundary;
+        p.spec.column = col;
+        p.spec.nodes = {n};
+        p.coefficients = {0.0};
+        p.start_from_data = true;
+        p.variant = "conductance to " + col + ", each node from the data (base fit far above its noise floor)";
+        each_node.push_back(std::move(p));
+      }
+    for (CandidateResult& c : refit_in_parallel(each_node)) L_.candidates.push_back(std::move(c));
   }
 
   // The proposals refitted side by side (each from ctx_ alone: the results are those of a

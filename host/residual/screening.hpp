@@ -65,6 +65,11 @@ struct Proposal {
   // effect, given back. The refit's second start.
   Eigen::VectorXd base_shift;
   bool alternative = false;            // the family's second-best variant
+  // The refit also runs the staged pipeline with every base parameter (and every effect parameter
+  // that enters linearly) started by its equation-error stages, not by the base fit: for a
+  // proposal the loop makes itself where the base fit's values are suspect (residual_loop.cpp,
+  // declared boundaries refitted at every node).
+  bool start_from_data = false;
   double gain_k2 = 0;                  // linearised RSS reduction after projection [K^2]
   double rss_fraction = 0;             // gain / base RSS (on the screening rows)
   double score = 0;                    // information-criterion gain on the effective sample size (> 0 = selected)
