@@ -9,6 +9,7 @@
 #include <chrono>
 #include <cmath>
 #include <limits>
+#include <optional>
 
 namespace btsm::residual {
 namespace th = btsm::thermal;
@@ -371,7 +372,7 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
       starts.push_back({p, false, false, "base fitted on the probe with the drift so far taken off", false, true});
     if (ctx.fit_base && p.spec.kind == EffectKind::SensorLag) {
       const double share = residual_share_of_column(ctx, p.spec.column);
-      if (share >= kProbeDominatesShare) {
+      if (share >= kProbeDominatesShare || ctx.lag_from_base_without_probe) {
         say(fmt::format("residual:     {}: column {} carries {:.0f} % of the base residual: the base is also fitted without it", cr.label,
                         p.spec.column, 100 * share));
         starts.push_back({p, false, false, "base fitted without the probe", false, true});
@@ -387,6 +388,7 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     double best_rms = std::numeric_limits<double>::infinity();
     Eigen::VectorXd best_base = ctx.base_params;
     bool second_tau_added = false;
+    std::optional<std::pair<AugmentedModel, Eigen::VectorXd>> without_probe;  // a lag's start without its probe (ctx.lag_from_base_without_probe)
     for (std::size_t s = 0; s < starts.size() + (second_tau_added ? 0 : 1); ++s) {
       if (s == starts.size()) {
         second_tau_added = true;
@@ -477,6 +479,8 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
       th::FitResult f = th::fit_network(am.net, refit, f1);
       say(fmt::format("residual:     {} start {} ({}{}): rms {:.4g} K with the effect alone", cr.label, s + 1, starts[s].what,
                       starts[s].p.spec.tau_s > 0 ? fmt::format(", tau {:.0f} s", starts[s].p.spec.tau_s) : std::string(), f.rms_K));
+      if (starts[s].without_probe && p.spec.kind == EffectKind::SensorLag && ctx.lag_from_base_without_probe)
+        without_probe.emplace(am, f.params);
       if (f.rms_K < best_rms) {
         best_rms = f.rms_K;
         best_base = f.params.head(base.param_count());
@@ -499,6 +503,17 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
       say(fmt::format("residual:     {} joint refit: rms {:.4g} K, {} ({} iterations, {} chunk(s) past the budget)", cr.label, fr.rms_K,
                       fr.converged ? "converged" : "NOT converged", fr.stages.empty() ? 0 : fr.stages.back().iterations,
                       fr.stages.empty() ? 0 : fr.stages.back().continuations));
+      if (without_probe) {
+        th::FitResult fw = joint(without_probe->first, without_probe->second);
+        say(fmt::format("residual:     {} joint refit from the base fitted without {}: rms {:.4g} K, {} ({} iterations, {} chunk(s) past "
+                        "the budget)",
+                        cr.label, p.spec.column, fw.rms_K, fw.converged ? "converged" : "NOT converged",
+                        fw.stages.empty() ? 0 : fw.stages.back().iterations, fw.stages.empty() ? 0 : fw.stages.back().continuations));
+        if (fw.rms_K < fr.rms_K) {
+          fr = std::move(fw);
+          am = std::move(without_probe->first);
+        }
+      }
     }
     // Backward elimination of nodes: the screening proposes up to max_nodes nodes from a linear
     // view; a node whose share of the effect the joint refit cannot tell from zero is dropped and

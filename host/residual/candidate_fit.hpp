@@ -32,6 +32,11 @@ struct CandidateContext {
   // named after `other_base_from` (refit_candidate says why).
   Eigen::VectorXd other_base_params;
   std::string other_base_from;
+  // A probe lag: the base fitted without the probe is a start whatever share of the base residual
+  // the probe carries, and the joint refit also runs from it (the better end is kept). That start's
+  // effect-alone fit is poor by construction (the probe's node is unprobed in it, its parameters
+  // free), so the best-start rule alone never continues from it.
+  bool lag_from_base_without_probe = false;
   std::function<void(const std::string&)> progress;
 };
 

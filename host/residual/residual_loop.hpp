@@ -36,6 +36,9 @@
 //      take over, a fit part fitted to its noise that misses the check, a transient the fit
 //      recordings only start from standstill, rivals that fit alike); a `partial` or
 //      `unexplained` verdict carries those of the candidates that cut the check most.
+//      A decision that ends without a claim is taken again with speed-driven heat at each
+//      unprobed node refitted, then with a lag at each probe refitted from the base fitted
+//      without that probe (a lag the base fit absorbed: the screening about that base misses it).
 #include "host/residual/effects.hpp"
 #include "host/residual/evaluation.hpp"
 #include "host/residual/identifiability.hpp"

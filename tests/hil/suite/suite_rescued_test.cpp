@@ -49,7 +49,10 @@ const std::vector<RescuedSet>& rescued_sets() {
       {2026, 1,  // a fresh unseen seed
        {{"extra_heat_input_unprobed_shaft_01",
          "coupled_heat@rear_bearing claimed (x2.15, a wrong family): a heat claim at a probed node was not challenged by heat at "
-         "the unprobed shaft, and that rival started only from the base fit"}}},
+         "the unprobed shaft, and that rival started only from the base fit"},
+        {"sensor_lag_lag_01",
+         "partial sensor_lag@T2: the base fit absorbed the shaft probe's 8.5 min lag and no refit went on from the base fitted "
+         "without T5; a decision without a claim now refits a lag at each probe from there"}}},
       {5150, 1,  // a fresh unseen seed
        {{"second_boundary_coolant_01",
          "extra_heat_input claimed (x2.2, a wrong family): the declared coolant (0.45 W/K at the front bearing) bent the base fit "
