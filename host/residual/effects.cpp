@@ -199,7 +199,7 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
       check_nodes(base, e, "heat_source_transient");
       const double tau = value_or(values, "tau_transient", e.tau_s > 0 ? e.tau_s : 900.0);
       m.trigger = e.trigger;
-      const int pc = add(m, param("C_transient", "J/K", kTransientCapacitance, 1.0, 1e7, true,
+      const int pc = add(m, param("C_transient", "J/K", kTransientCapacitance, 1e-3, 1e7, true,
                                   "capacity of the virtual transient state (fixed: the impulse scale)", true),
                          values, false);
       const int v = add_node(m, "transient", pc);
@@ -210,16 +210,21 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
         // amplitude -> coupling: heat right after one trigger unit = g (E/C) at w0
         double a = value_or(values, "a_transient_" + nn, e.multiplicative ? 0.3 : 2.0);
         if (e.multiplicative) a *= std::max(source_heat_at_w0(base, base_params, n), 1e-3);
-        const double g = std::max(a, 1e-6) * kTransientCapacitance / kTransientImpulse;
+        // (bounds: 1e-7 .. 1e5 W right after one trigger unit)
+        const double w_to_g = kTransientCapacitance / kTransientImpulse;
+        const double g = std::max(a, 1e-6) * w_to_g;
         g_sum += g;
-        const int pg = add(m, param("g_transient_" + nn, "W/K", g, 1e-10, 1e2, true,
+        const int pg = add(m, param("g_transient_" + nn, "W/K", g, 1e-7 * w_to_g, 1e5 * w_to_g, true,
                                     std::string("coupling transient state -> ") + nn + (e.multiplicative ? " (x friction law)" : "")),
                            values);
         add_link(m, "g_transient_" + nn, n, v, {term(pg, th::TermKind::Conductance, ex)}, {});
         m.key_params.push_back("g_transient_" + nn);
       }
-      const double g_decay = std::max(kTransientCapacitance / std::max(tau, 1.0) - g_sum, 1e-6);
-      const int pd = add(m, param("g_transient_decay", "W/K", g_decay, 1e-6, 1e4, true, "decay path of the transient state"), values);
+      // (bounds: a decay time of 0.1 s .. 1e9 s)
+      const double g_decay = std::max(kTransientCapacitance / std::max(tau, 1.0) - g_sum, kTransientCapacitance / 1e9);
+      const int pd = add(m, param("g_transient_decay", "W/K", g_decay, kTransientCapacitance / 1e9, kTransientCapacitance / 0.1, true,
+                                  "decay path of the transient state"),
+                         values);
       add_link(m, "g_transient_decay", v, th::kAmbient, {term(pd, th::TermKind::Conductance)}, {term(pd, th::TermKind::Conductance)});
       if (std::isfinite(m.net.sum_capacitance_J_per_K)) m.net.sum_capacitance_J_per_K += kTransientCapacitance;
       m.transient_node = v;

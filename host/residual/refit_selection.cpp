@@ -50,4 +50,46 @@ RefitSelection select_refits(const std::vector<Proposal>& proposals, int max_can
   return s;
 }
 
+std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refitted, double speed_ref_rpm) {
+  std::vector<Proposal> out;
+  const auto sorted_nodes = [](const EffectSpec& e) {
+    std::vector<int> n = e.nodes;
+    std::sort(n.begin(), n.end());
+    return n;
+  };
+  // the variant already refitted (or added) at these nodes
+  const auto present = [&](const std::vector<int>& nodes, TransientTrigger t, bool mult) {
+    const std::vector<Proposal>* lists[] = {&refitted, &out};
+    for (const std::vector<Proposal>* list : lists)
+      for (const Proposal& q : *list)
+        if (q.spec.kind == EffectKind::HeatSourceTransient && sorted_nodes(q.spec) == nodes && q.spec.trigger == t &&
+            q.spec.multiplicative == mult)
+          return true;
+    return false;
+  };
+  const double units_per_start = std::max(speed_ref_rpm, 1.0) / 1000.0;
+  for (const Proposal& p : refitted) {
+    if (p.spec.kind != EffectKind::HeatSourceTransient) continue;
+    const std::vector<int> nodes = sorted_nodes(p.spec);
+    for (const TransientTrigger t : {TransientTrigger::SpeedIncrease, TransientTrigger::StartOrChange})
+      for (const bool mult : {false, true}) {
+        if (present(nodes, t, mult)) continue;
+        Proposal q = p;
+        q.spec.trigger = t;
+        q.spec.multiplicative = mult;
+        q.alternative = true;
+        // W per unit of p's trigger -> W per unit of t's (x friction law: the same W at w0)
+        double scale = 1.0;
+        if (p.spec.trigger == TransientTrigger::SpeedIncrease && t == TransientTrigger::StartOrChange) scale = units_per_start;
+        if (p.spec.trigger == TransientTrigger::StartOrChange && t == TransientTrigger::SpeedIncrease) scale = 1.0 / units_per_start;
+        for (double& c : q.coefficients) c *= scale;
+        q.variant = fmt::format("{}, {}, tau {:.0f} min (another variant of the screened transient)",
+                                mult ? "x friction law" : "additive",
+                                t == TransientTrigger::SpeedIncrease ? "every speed increase" : "every start or speed change", p.spec.tau_s / 60);
+        out.push_back(std::move(q));
+      }
+  }
+  return out;
+}
+
 }  // namespace btsm::residual

@@ -20,6 +20,14 @@
 //     the true transient at rear_bearing alone (score 225, 5th) was never refitted.
 // At most 2 x max_candidates refits (every best proposal with its second variant); on the stored
 // answers above this refits 4 proposals in 55 of the 102 cases, 5 in 45 and 6 in 2.
+//  3. A run-in transient refitted at some nodes is refitted there in EVERY (trigger, coupling)
+//     variant (other_transient_variants): the warm-ups start once each, so the four variants
+//     differ in the fit recordings only in how the first amplitude scales with the start speed
+//     (w, w^e, w^(1+e) or 1), which the linear screening about a base that absorbed the
+//     transient ranks unreliably; the stepwise check run tells them apart (each later step).
+//     Unseen seeds 2026 and 5150: the plant's variant was never refitted (additive at
+//     rear_bearing: proposed 'x friction law, every speed increase' and 'additive, every start';
+//     multiplicative at front_bearing: proposed 'additive, every start or speed change' only).
 #include "host/residual/screening.hpp"
 
 #include <cstddef>
@@ -35,6 +43,12 @@ struct RefitSelection {
 
 // `proposals` best screening score first (ScreeningResult::proposals).
 RefitSelection select_refits(const std::vector<Proposal>& proposals, int max_candidates);
+
+// For every distinct node set of the transient proposals in `refitted`, the (trigger, coupling)
+// variants not among them, as proposals at those nodes with the same time constant and base
+// shift; the amplitude start is converted between the triggers' units at the reference speed
+// (one start from standstill to `speed_ref_rpm` = speed_ref_rpm / 1000 units of increase).
+std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refitted, double speed_ref_rpm);
 
 // True when two proposals name the same explanation: family, nodes (in any order) and column.
 bool same_explanation(const EffectSpec& a, const EffectSpec& b);

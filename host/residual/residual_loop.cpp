@@ -348,6 +348,7 @@ class ResidualLoop {
     const RefitSelection sel = select_refits(proposals, o_.max_candidates);
     std::vector<Proposal> todo;
     for (std::size_t i : sel.refit) todo.push_back(proposals[i]);
+    add_transient_variants(todo);
     for (CandidateResult& c : refit_in_parallel(todo)) L_.candidates.push_back(std::move(c));
     for (std::size_t i = 0; i < proposals.size(); ++i) {
       if (sel.reason[i].empty()) continue;
@@ -387,6 +388,15 @@ class ResidualLoop {
         each_node.push_back(std::move(p));
       }
     for (CandidateResult& c : refit_in_parallel(each_node)) L_.candidates.push_back(std::move(c));
+  }
+
+  // A transient refitted at some nodes is refitted there in every (trigger, coupling) variant
+  // (refit_selection.hpp, rule 3).
+  void add_transient_variants(std::vector<Proposal>& todo) const {
+    for (Proposal& q : other_transient_variants(todo, base_.speed_ref_rpm)) {
+      say(fmt::format("residual: also refitting {} as '{}'", effect_label(q.spec, base_), q.variant));
+      todo.push_back(std::move(q));
+    }
   }
 
   // The proposals refitted side by side (each from ctx_ alone: the results are those of a
@@ -484,8 +494,10 @@ class ResidualLoop {
     ctx_.before_check = L_.before_check;
     std::vector<Proposal> todo;
     const RefitSelection sel = select_refits(L_.screening.proposals, o_.max_candidates);  // as the first screening's
-    for (std::size_t i : sel.refit) {
-      const Proposal& p = L_.screening.proposals[i];
+    std::vector<Proposal> wanted;
+    for (std::size_t i : sel.refit) wanted.push_back(L_.screening.proposals[i]);
+    add_transient_variants(wanted);
+    for (const Proposal& p : wanted) {
       const std::string label = effect_label(p.spec, base_);
       bool done = false;
       for (auto& c : L_.candidates) {

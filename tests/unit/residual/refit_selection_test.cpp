@@ -51,6 +51,55 @@ TEST(RefitSelection, ADistinctExplanationRankedBelowTwoVariantsOfOneIsRefitted) 
   EXPECT_NE(s.reason[8].find("score 8 below the 4 best proposals"), std::string::npos) << s.reason[8];
 }
 
+// Rule 3: the screening of seed 2026's additive run-in proposed two variants at two node sets,
+// neither the plant's (additive, every speed increase, at rear_bearing); every (trigger,
+// coupling) variant is refitted at each node set, none twice, amplitudes in the new trigger's unit.
+TEST(RefitSelection, EveryTriggerAndCouplingOfARefittedTransientIsRefittedAtItsNodes) {
+  const auto ps = seed2026_transient_case();
+  std::vector<Proposal> refitted;
+  for (std::size_t i : select_refits(ps, 4).refit) refitted.push_back(ps[i]);
+  refitted[3].spec.trigger = TransientTrigger::SpeedIncrease;
+  refitted[3].spec.multiplicative = true;
+  refitted[3].spec.tau_s = 1200;
+  refitted[3].coefficients = {2.0, 1.0};
+  refitted[4].spec.trigger = TransientTrigger::StartOrChange;
+  refitted[4].spec.multiplicative = false;
+  refitted[4].spec.tau_s = 2400;
+  refitted[4].coefficients = {10.0};
+  const std::vector<Proposal> more = other_transient_variants(refitted, 5000.0);
+  ASSERT_EQ(more.size(), 6u);  // three more at rear+front, three more at rear
+  int at_pair = 0, at_rear = 0;
+  bool rear_additive_increase = false;
+  for (const Proposal& q : more) {
+    ASSERT_EQ(q.spec.kind, EffectKind::HeatSourceTransient);
+    for (const Proposal& r : refitted)  // never one already refitted
+      EXPECT_FALSE(r.spec.kind == q.spec.kind && r.spec.nodes == q.spec.nodes && r.spec.trigger == q.spec.trigger &&
+                   r.spec.multiplicative == q.spec.multiplicative)
+          << q.variant;
+    if (q.spec.nodes.size() == 2) {
+      ++at_pair;
+      EXPECT_EQ(q.spec.tau_s, 1200);
+      // from W per 1000 rpm of increase to W per start: x 5 (a start to the 5000 rpm reference)
+      const double scale = q.spec.trigger == TransientTrigger::StartOrChange ? 5.0 : 1.0;
+      EXPECT_EQ(q.coefficients, (std::vector<double>{2.0 * scale, 1.0 * scale})) << q.variant;
+    } else {
+      ++at_rear;
+      EXPECT_EQ(q.spec.tau_s, 2400);
+      const double scale = q.spec.trigger == TransientTrigger::SpeedIncrease ? 0.2 : 1.0;
+      EXPECT_EQ(q.coefficients, (std::vector<double>{10.0 * scale})) << q.variant;
+      if (q.spec.trigger == TransientTrigger::SpeedIncrease && !q.spec.multiplicative) {
+        rear_additive_increase = true;
+        EXPECT_EQ(q.variant, "additive, every speed increase, tau 40 min (another variant of the screened transient)");
+      }
+    }
+  }
+  EXPECT_EQ(at_pair, 3);
+  EXPECT_EQ(at_rear, 3);
+  EXPECT_TRUE(rear_additive_increase);
+  // nothing to add when no transient is refitted
+  EXPECT_TRUE(other_transient_variants({ps[0], ps[2]}, 5000.0).empty());
+}
+
 TEST(RefitSelection, FourDistinctBestProposalsAreExactlyWhatIsRefitted) {
   auto ps = seed2026_transient_case();
   ps.erase(ps.begin() + 1);  // without the second extra_heat_input variant the four best are distinct
