@@ -52,7 +52,10 @@ const std::vector<RescuedSet>& rescued_sets() {
          "the unprobed shaft, and that rival started only from the base fit"},
         {"sensor_lag_lag_01",
          "partial sensor_lag@T2: the base fit absorbed the shaft probe's 8.5 min lag and no refit went on from the base fitted "
-         "without T5; a decision without a claim now refits a lag at each probe from there"}}},
+         "without T5; a decision without a claim now refits a lag at each probe from there"},
+        {"heat_source_transient_additive_01",
+         "unexplained: the plant's variant (additive, every speed increase, rear bearing) was never refitted, the screening "
+         "proposed two others; every (trigger, coupling) variant of a refitted transient now is (refit_selection.hpp rule 3)"}}},
       {5150, 1,  // a fresh unseen seed
        {{"second_boundary_coolant_01",
          "extra_heat_input claimed (x2.2, a wrong family): the declared coolant (0.45 W/K at the front bearing) bent the base fit "
