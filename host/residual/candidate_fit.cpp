@@ -360,22 +360,31 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
     // Where the base fit is bent by what it lacks (a strong declared coolant: 0.557 K, 101x its
     // noise floor, with the plant's own base values at 0.028 K), no start near it reaches the
     // joint optimum, and the staged fit from the data alone does (0.0023 K).
-    struct Start { Proposal p; bool pinned, on_best_base; std::string what; bool staged = false; bool without_probe = false; bool other_base = false; bool from_data = false; };
-    std::vector<Start> starts{{p, false, false, "base fit"}};
-    if (ctx.fit_base) starts.push_back({p, true, false, "base refitted around the screening's effect"});
-    if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag) starts.push_back({p, false, false, "staged fit of base + effect from the data", true});
+    struct Start {
+      Proposal p;
+      bool pinned = false, on_best_base = false;
+      std::string what;
+      bool staged = false, without_probe = false, other_base = false, from_data = false;
+    };
+    std::vector<Start> starts{{.p = p, .what = "base fit"}};
+    if (ctx.fit_base) starts.push_back({.p = p, .pinned = true, .what = "base refitted around the screening's effect"});
+    if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag)
+      starts.push_back({.p = p, .what = "staged fit of base + effect from the data", .staged = true});
     if (ctx.fit_base && p.start_from_data && p.spec.kind != EffectKind::SensorLag)
-      starts.push_back({p, false, false, "staged fit of base + effect from the data alone, no base value given", true, false, false, true});
+      starts.push_back({.p = p, .what = "staged fit of base + effect from the data alone, no base value given", .staged = true, .from_data = true});
     if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag && ctx.other_base_params.size() == base.param_count())
-      starts.push_back({p, false, false, "staged fit from the base of " + ctx.other_base_from, true, false, true});
+      starts.push_back({.p = p, .what = "staged fit from the base of " + ctx.other_base_from, .staged = true, .other_base = true});
     if (ctx.fit_base && p.spec.kind == EffectKind::SensorDrift)
-      starts.push_back({p, false, false, "base fitted on the probe with the drift so far taken off", false, true});
+      starts.push_back({.p = p, .what = "base fitted on the probe with the drift so far taken off", .without_probe = true});
     if (ctx.fit_base && p.spec.kind == EffectKind::SensorLag) {
       const double share = residual_share_of_column(ctx, p.spec.column);
       if (share >= kProbeDominatesShare || ctx.lag_from_base_without_probe) {
-        say(fmt::format("residual:     {}: column {} carries {:.0f} % of the base residual: the base is also fitted without it", cr.label,
-                        p.spec.column, 100 * share));
-        starts.push_back({p, false, false, "base fitted without the probe", false, true});
+        say(share >= kProbeDominatesShare
+                ? fmt::format("residual:     {}: column {} carries {:.0f} % of the base residual: the base is also fitted without it", cr.label,
+                              p.spec.column, 100 * share)
+                : fmt::format("residual:     {}: no claim so far: the base is also fitted without column {} ({:.0f} % of the base residual)",
+                              cr.label, p.spec.column, 100 * share));
+        starts.push_back({.p = p, .what = "base fitted without the probe", .without_probe = true});
       }
     }
     th::FitOptions fo;
@@ -396,7 +405,7 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
         if (!(has_time_constant(p.spec.kind) && p.spec.tau_s > 0)) break;
         Proposal q = p;
         q.spec.tau_s = p.spec.tau_s * 2.5;
-        starts.push_back({q, false, true, "second time constant"});
+        starts.push_back({.p = q, .on_best_base = true, .what = "second time constant"});
       }
       Eigen::VectorXd base_values = starts[s].on_best_base ? best_base : starts[s].other_base ? ctx.other_base_params : ctx.base_params;
       if (starts[s].without_probe) {

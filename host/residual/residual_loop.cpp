@@ -489,9 +489,7 @@ class ResidualLoop {
                       "screening again about it",
                       L_.base_fit.final_start, base_rms_before_repolish_, L_.before_fit.rmse_k));
     propose_candidates();
-    ctx_.base_params = bp_;
-    ctx_.base_bic = base_bic_;
-    ctx_.before_check = L_.before_check;
+    context_on_current_base();
     std::vector<Proposal> todo;
     const RefitSelection sel = select_refits(L_.screening.proposals, o_.max_candidates);  // as the first screening's
     std::vector<Proposal> wanted;
@@ -680,9 +678,7 @@ class ResidualLoop {
     if (L_.verdict != "unexplained" && L_.verdict != "partial") return;
     const int before = L_.chosen;
     if (refit_unprobed_heat("at an unprobed node, which the screening hardly sees") == 0) return;
-    reopen_verdicts();
-    decide();
-    if (L_.chosen >= 0 && L_.chosen != before) polish_chosen();
+    decide_again(before);
   }
 
   // Stage 7e: a lag of the only probe of a node that the base reaches mostly through that probe
@@ -698,9 +694,7 @@ class ResidualLoop {
     if (L_.verdict != "unexplained" && L_.verdict != "partial") return;
     if (!o_.fit_base || !wanted(EffectKind::SensorLag)) return;
     const int before = L_.chosen;
-    ctx_.base_params = bp_;
-    ctx_.base_bic = base_bic_;
-    ctx_.before_check = L_.before_check;
+    context_on_current_base();
     std::vector<Proposal> lags;
     for (const auto& m : base_.measurements) {
       Proposal p;
@@ -716,9 +710,21 @@ class ResidualLoop {
     std::vector<CandidateResult> fitted = refit_in_parallel(lags);
     ctx_.lag_from_base_without_probe = false;
     for (CandidateResult& c : fitted) L_.candidates.push_back(std::move(c));
+    decide_again(before);
+  }
+
+  // The refits of a later stage are judged against the base as it stands now (re-polished or not).
+  void context_on_current_base() {
+    ctx_.base_params = bp_;
+    ctx_.base_bic = base_bic_;
+    ctx_.before_check = L_.before_check;
+  }
+
+  // A later stage added candidates: the decision is taken again, and a new choice is polished.
+  void decide_again(int chosen_before) {
     reopen_verdicts();
     decide();
-    if (L_.chosen >= 0 && L_.chosen != before) polish_chosen();
+    if (L_.chosen >= 0 && L_.chosen != chosen_before) polish_chosen();
   }
 
   // Refits speed-driven heat ((w/w0)^1 and ^2) at each node without a probe, jointly with the base
@@ -729,9 +735,7 @@ class ResidualLoop {
     std::vector<int> unprobed;
     for (int n = 0; n < base_.node_count(); ++n)
       if (!base_.has_probe(n)) unprobed.push_back(n);
-    ctx_.base_params = bp_;
-    ctx_.base_bic = base_bic_;
-    ctx_.before_check = L_.before_check;
+    context_on_current_base();
     int fitted = 0;
     std::vector<Proposal> rivals;
     for (int n : unprobed)

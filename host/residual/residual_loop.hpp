@@ -84,9 +84,9 @@ struct LoopOptions {
   // noise floor (a ratio; 0 = never). WHY: a strong boundary the base lacks bends the base fit
   // into a wrong basin (suite seed 5150 coolant_01: 0.557 K, 101x the floor; the plant's own base
   // values give 0.028 K); the screening linearises about that base and proposes the boundary at
-  // the wrong nodes, and every refit start holds the base fit's values. 10 = the base fit's own
-  // restart threshold (FitOptions::restart_above_noise_factor).
-  double boundary_from_data_above_noise = 10.0;
+  // the wrong nodes, and every refit start holds the base fit's values. The base fit's own restart
+  // threshold (FitOptions::restart_above_noise_factor, 10).
+  double boundary_from_data_above_noise = thermal::FitOptions{}.restart_above_noise_factor;
   unsigned threads = 0;                 // independent refits run at once (0 = the machine's cores); the result does not depend on it
   ScreeningOptions screening;
   std::function<void(const std::string&)> progress;
