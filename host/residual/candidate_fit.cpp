@@ -15,6 +15,10 @@ namespace btsm::residual {
 namespace th = btsm::thermal;
 namespace {
 
+// A refit this many times worse than the base model's check error has diverged (record_fit).
+constexpr double kDivergedFactor = 1000.0;
+
+
 // A probe whose column carries at least this share of the base fit's residual sum of squares
 // dominates it: one distorted reading is then the likeliest reason for the misfit, and a probe
 // lag there is also started from the base fitted without that probe. A column of four to five
@@ -250,6 +254,18 @@ void record_fit(const CandidateContext& ctx, const AugmentedModel& am, const Eff
   cr.held = joint_options(ctx, am, fr.params, {}, also_hold).hold;
   fill_evidence(ctx, am, spec, fr, cr);
   cr.status = "fitted";
+  // A refit whose model errs a thousand times more than the base model did on the check part has
+  // not fitted anything: its values make the network unstable (or the optimiser left the physical
+  // range) and its error, BIC and |z| are numbers without meaning. It is a failed fit, reported as
+  // diverged, not a rejected candidate with absurd evidence.
+  const double worst = std::max(cr.fit.rmse_k, cr.check.rmse_k);
+  const double limit = kDivergedFactor * std::max(ctx.before_check.rmse_k, 1e-3);
+  if (!std::isfinite(worst) || worst > limit) {
+    cr.status = "failed";
+    cr.reason = fmt::format("the refit diverged: its model errs {:.3g} K on the fit recordings and {:.3g} K on the check "
+                            "recordings, more than {:.0f}x the base model's check error ({:.3g} K)",
+                            cr.fit.rmse_k, cr.check.rmse_k, kDivergedFactor, ctx.before_check.rmse_k);
+  }
 }
 
 CandidateResult candidate_of(const Proposal& p, const th::Network& base) {

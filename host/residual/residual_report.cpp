@@ -172,6 +172,8 @@ std::string format_table(const LoopResult& r) {
     if (fitted)
       o << fmt::format("{:>9.4f} {:>10.4f} {:>7.2f} {:>9.1f} {:>6.1f}  {}\n", c.fit.rmse_k, c.check.rmse_k, c.check_factor, c.delta_bic,
                        c.key_z, c.status);
+    else if (c.status == "failed")  // a fit that threw or diverged: no evidence, the reason instead
+      o << fmt::format("{:>9} {:>10} {:>7} {:>9} {:>6}  failed: {}\n", "", "", "", "", "", c.reason);
     else
       o << fmt::format("{:>9} {:>10} {:>7} {:>9} {:>6}  {}\n", "", "", "", "", "", c.status);
     if (!c.variant.empty()) o << fmt::format("  {:<46} {}\n", "", c.variant);

@@ -174,7 +174,9 @@ TEST(EffectSuiteGenerate, RecordsTheProcedureThroughTheModuleWithDeclaredColumns
       opened += v == 1.0;
     }
     EXPECT_EQ(opened > 0, i == 0) << r.name;  // 10 min in the first run: 120 rows
-    if (i == 0) EXPECT_NEAR(opened, 120, 1);
+    if (i == 0) {
+      EXPECT_NEAR(opened, 120, 1);
+    }
   }
   // The module's noise, quantisation and Kalman filter: a few mK against the truth.
   EXPECT_GT(g.noise_floor_check_k, 0.0005);

@@ -287,8 +287,9 @@ TEST(ModelStore, InvalidBlobsAreNackedAndTheOldModelStaysActive) {
     c.edit(bad);
     const Upload u = upload(board, store, m, bad, key, key);
     EXPECT_EQ(u.commit, c.expected);
-    if (bad[kBlobOffVersion] != kReducedModelVersion && bad[0] == 'B')
+    if (bad[kBlobOffVersion] != kReducedModelVersion && bad[0] == 'B') {
       EXPECT_EQ(u.detail >> 8, bad[kBlobOffVersion]) << "the NACK names the version found";
+    }
     EXPECT_EQ(store.active_seq(), 1u);
     EXPECT_EQ(active_blob(store), good);
     EXPECT_EQ(std::memcmp(&before, &m, sizeof m), 0) << "runtime model untouched by the failed upload";

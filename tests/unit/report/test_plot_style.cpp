@@ -330,7 +330,9 @@ TEST(PlotStyle, LongTitlesWrapInsideTheCanvas) {
         EXPECT_TRUE(panel.area.contains(t)) << panel.title_lines[k];
         EXPECT_FALSE(t.overlaps(panel.plot)) << panel.title_lines[k];
         for (const auto& e : panel.legend) EXPECT_FALSE(t.overlaps(e.box)) << panel.title_lines[k] << " / " << e.text;
-        if (k > 0) EXPECT_FALSE(t.overlaps(panel.title_boxes[k - 1]));
+        if (k > 0) {
+          EXPECT_FALSE(t.overlaps(panel.title_boxes[k - 1]));
+        }
       }
     }
   }

@@ -7,8 +7,11 @@
 #include "host/thermal/recording.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <cmath>
+#include <fstream>
 #include <string>
 #include <vector>
 
@@ -22,9 +25,43 @@ LoopResult run(const std::string& folder, const std::string& network, const std:
                            {th::read_recording_csv(dir + check)}, {});
 }
 
+// The result README.md shows for a recording (tests/data/<folder>/<result>/residual_result.json,
+// written by the `btsm residual ... --report` command in that folder's README) is what the loop
+// answers today: the verdict, the effect, its nodes and the check error before and after. A stored
+// result that drifted from the loop (calib2023's once did, unnoticed) fails here.
+void expect_matches_stored(const LoopResult& r, const std::string& folder, const std::string& result) {
+  const std::string path = std::string(BTSM_TEST_DATA_DIR) + "/" + folder + "/" + result + "/residual_result.json";
+  std::ifstream in(path);
+  ASSERT_TRUE(in.good()) << path;
+  const nlohmann::json j = nlohmann::json::parse(in);
+  EXPECT_EQ(r.verdict, j.at("verdict").get<std::string>()) << path;
+  EXPECT_EQ(r.effect, j.at("effect").get<std::string>()) << path;
+  EXPECT_EQ(r.nodes, j.at("nodes").get<std::vector<std::string>>()) << path;
+  // 0.5 %: the loop runs its refits on threads, and the order of the sums may differ in the last bits
+  EXPECT_NEAR(r.before_check.rmse_k, j.at("rmse_before_K").get<double>(), 0.005 * r.before_check.rmse_k) << path;
+  EXPECT_NEAR(r.after_check.rmse_k, j.at("rmse_after_K").get<double>(), 0.005 * r.after_check.rmse_k) << path;
+}
+
 bool names(const std::vector<std::string>& v, const std::string& x) { return std::find(v.begin(), v.end(), x) != v.end(); }
 
+// Every judged candidate's evidence is a number a reader can use: a refit that diverged (the SJTU
+// coupled heat once ended at 4.5e51 K on the check part and was listed as "rejected" with |z| 4e10)
+// is a failed fit that says so, with no error, BIC or |z| of its own.
+void expect_sane_evidence(const LoopResult& r) {
+  for (const auto& c : r.candidates) {
+    if (c.status == "failed") {
+      EXPECT_FALSE(c.reason.empty()) << c.label;
+      continue;
+    }
+    if (c.status != "effect" && c.status != "partial" && c.status != "rejected") continue;
+    EXPECT_TRUE(std::isfinite(c.fit.rmse_k) && std::isfinite(c.check.rmse_k)) << c.label;
+    EXPECT_LT(c.check.rmse_k, 1000 * r.before_check.rmse_k) << c.label << ": " << c.reason;
+    EXPECT_LT(c.fit.rmse_k, 1000 * r.before_check.rmse_k) << c.label << ": " << c.reason;
+  }
+}
+
 void expect_nothing_claimed(const LoopResult& r) {
+  expect_sane_evidence(r);
   EXPECT_EQ(r.verdict, "unexplained") << format_table(r);
   EXPECT_EQ(r.effect, "unexplained");
   EXPECT_DOUBLE_EQ(r.after_check.rmse_k, r.before_check.rmse_k);
@@ -35,6 +72,7 @@ void expect_nothing_claimed(const LoopResult& r) {
 // (undocumented sensor positions, an actively cooled channel); the loop says so and where.
 TEST(ResidualLoopRealData, FlThermalIsUnexplainedNotMisattributed) {
   const LoopResult r = run("spindle-fl-thermal", "fl3_network.json", "fl_fit_0-20h.csv", "fl_check_20-46h.csv");
+  expect_matches_stored(r, "spindle-fl-thermal", "result");
   expect_nothing_claimed(r);
   EXPECT_GT(r.before_check.rmse_k, 0.3);
   EXPECT_TRUE(names(r.nodes, "column"));
@@ -45,6 +83,7 @@ TEST(ResidualLoopRealData, FlThermalIsUnexplainedNotMisattributed) {
 // (no declared boundary here: the room sensor is the only one).
 TEST(ResidualLoopRealData, SjtuElongationIsUnexplainedNotMisattributed) {
   const LoopResult r = run("spindle-sjtu-elongation", "sjtu4_network.json", "sjtu_fit_0-24h.csv", "sjtu_check_24-78h.csv");
+  expect_matches_stored(r, "spindle-sjtu-elongation", "result");
   expect_nothing_claimed(r);
   EXPECT_LT(r.before_fit.rmse_k, 0.4);
   EXPECT_GT(r.before_check.rmse_k, 0.7);
@@ -56,6 +95,7 @@ TEST(ResidualLoopRealData, SjtuElongationIsUnexplainedNotMisattributed) {
 // well-identified box-to-room resistance agrees with the source's own calibration (1.735 K/W).
 TEST(ResidualLoopRealData, IncubatorCalibrationIsUnexplained) {
   const LoopResult r = run("incubator-dt", "incubator2_2023_network.json", "calib2023_fit_0-55min.csv", "calib2023_check_55-111min.csv");
+  expect_matches_stored(r, "incubator-dt", "result/calib2023");
   expect_nothing_claimed(r);
   EXPECT_LT(r.before_check.rmse_k, 0.3);
   const int i = r.base_net.param_index("R_box");
@@ -68,6 +108,7 @@ TEST(ResidualLoopRealData, IncubatorCalibrationIsUnexplained) {
 // openings: unexplained.
 TEST(ResidualLoopRealData, IncubatorLidOpeningsWithoutEventsInTheFitPartAreUnexplained) {
   const LoopResult r = run("incubator-dt", "incubator2_2021_network.json", "lid2021_fit_0-34min.csv", "lid2021_check_34-323min.csv");
+  expect_matches_stored(r, "incubator-dt", "result/lid2021");
   expect_nothing_claimed(r);
   EXPECT_GT(r.before_check.rmse_k, 3.0);
 }
@@ -78,6 +119,8 @@ TEST(ResidualLoopRealData, IncubatorLidOpeningsWithoutEventsInTheFitPartAreUnexp
 TEST(ResidualLoopRealData, IncubatorLidOpeningsAreAnEventConductance) {
   const LoopResult r = run("incubator-dt", "incubator2_2021_network.json", "lid2021_events_fit_0-170min.csv",
                            "lid2021_events_check_170-323min.csv");
+  expect_matches_stored(r, "incubator-dt", "result/lid2021_events");
+  expect_sane_evidence(r);
   EXPECT_EQ(r.verdict, "effect") << format_table(r);
   EXPECT_EQ(r.effect, "event_conductance");
   EXPECT_TRUE(names(r.nodes, "air"));

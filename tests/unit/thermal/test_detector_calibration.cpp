@@ -77,7 +77,9 @@ TEST(DetectorCalibration, FollowsTheStatedRuleAndSeparatesNormalFromAFault) {
     for (double d = 0.05; d <= cc.worst_above_K + 0.05; d += 0.05) {
       const double w = 1.5 * worst_evidence(res, d, 1e9, 5000).first + 0.5;
       const double t = minutes_to_evidence(red.design_fault.rise_K[c], d, 2 * w, 5000);
-      if (t >= 0) EXPECT_GE(t, cc.design_alarm_min - 1e-9) << "channel " << j << " drift " << d;
+      if (t >= 0) {
+        EXPECT_GE(t, cc.design_alarm_min - 1e-9) << "channel " << j << " drift " << d;
+      }
     }
     EXPECT_DOUBLE_EQ(minutes_to_evidence(red.design_fault.rise_K[c], cc.detector.drift_K,
                                          cc.detector.alarm_evidence_K_min, 5000),

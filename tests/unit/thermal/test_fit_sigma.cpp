@@ -66,7 +66,9 @@ TEST(ThermalFitSigma, TruthLiesWithinTwoSigmaForEveryIdentifiableParameter) {
   // What the data cannot resolve is labelled so, not given a tiny sigma: the linear friction terms
   // (truth 0.0043 and 0.0073 W beside 37 and 28 W of the 5/3-power terms).
   for (const auto& e : mf.fit.estimates)
-    if (e.name == "qf3" || e.name == "qf4") EXPECT_EQ(e.status, Identifiability::NotIdentifiable) << e.name;
+    if (e.name == "qf3" || e.name == "qf4") {
+      EXPECT_EQ(e.status, Identifiability::NotIdentifiable) << e.name;
+    }
   EXPECT_NE(mf.fit.sigma_method.find("Driscoll-Kraay"), std::string::npos);
 }
 

@@ -183,7 +183,9 @@ TEST(ThermalReduce, CarriersCutTheErrorWhereTheyAreChosen) {
       EXPECT_LE(cr.carried_duty_K, 0.9 * cr.plain_duty_K);
       EXPECT_LE(s.deviation.quantized_vs_full_K[c], plain.deviation.quantized_vs_full_K[c] + 0.05);
     }
-    if (variant == 1) EXPECT_GE(carried, 1) << "the front bearing next to the shaft rides on something";
+    if (variant == 1) {
+      EXPECT_GE(carried, 1) << "the front bearing next to the shaft rides on something";
+    }
   }
 }
 
