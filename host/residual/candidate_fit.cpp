@@ -175,6 +175,7 @@ th::Recording decimated(const th::Recording& rec, double step_s) {
 }
 
 std::map<std::string, double> start_values(const th::Network& base, const Eigen::VectorXd& bp, const Proposal& p) {
+  if (!p.effect_start.empty()) return p.effect_start;
   std::map<std::string, double> v;
   const auto& e = p.spec;
   const auto coef = [&](std::size_t i) { return i < p.coefficients.size() && std::isfinite(p.coefficients[i]) ? p.coefficients[i] : 0.0; };

@@ -67,6 +67,7 @@ class ResidualLoop {
     decide();
     prune_chosen_on_check();
     polish_chosen();
+    refit_claim_from_better_basin();
     challenge_sensor_claim();
     challenge_heat_claim();
     try_unprobed_heat();
@@ -612,6 +613,41 @@ class ResidualLoop {
     }
     reopen_verdicts();
     decide();
+  }
+
+  // Stage 7b': a claim (or a partial explanation) whose refit fits the fit recordings several times
+  // worse than another candidate sits in a basin of the base values: the base fit absorbed part of
+  // the effect, every start of the claim's refit held those values, and a candidate of another
+  // family that fits far better has given much of that back. The claimed effect is refitted once
+  // more from that candidate's base values (refit_candidate, start 6), starting from its own fitted
+  // effect, and the decision is taken again: the held-out check chooses between the two refits of
+  // the same effect, so this can cut the claim's check error but never name another family.
+  void refit_claim_from_better_basin() {
+    const double factor = o_.claim_from_better_basin_factor;
+    if (L_.chosen < 0 || !o_.fit_base || !(factor > 0)) return;
+    const int donor = best_fitting_candidate();
+    if (donor < 0 || donor == L_.chosen) return;
+    const CandidateResult& c = L_.candidates[static_cast<std::size_t>(L_.chosen)];
+    const CandidateResult& d = L_.candidates[static_cast<std::size_t>(donor)];
+    if (!(d.fit.rmse_k * factor < c.fit.rmse_k)) return;
+    say(fmt::format("residual: {} fits the fit recordings at {:.4g} K, {} at {:.4g} K: refitting {} from the base of {}", c.label,
+                    c.fit.rmse_k, d.label, d.fit.rmse_k, c.label, d.label));
+    Proposal p;
+    p.spec = c.spec;
+    p.variant = c.variant + (c.variant.empty() ? "" : ", ") + "from the base of " + d.label;
+    for (const auto& name : c.effect_params) {
+      const int i = c.net.param_index(name);
+      if (i >= 0 && i < c.values.size()) p.effect_start[name] = c.values[i];
+    }
+    const int before = L_.chosen;
+    context_on_current_base();
+    ctx_.other_base_params = d.values.head(base_.param_count());
+    ctx_.other_base_from = d.label;
+    std::vector<CandidateResult> refitted = refit_in_parallel({p});
+    ctx_.other_base_params.resize(0);
+    ctx_.other_base_from.clear();
+    for (CandidateResult& r : refitted) L_.candidates.push_back(std::move(r));
+    decide_again(before);
   }
 
   // Stage 7c: a probe's lag or drift and heat at a node no probe measures both show up only through

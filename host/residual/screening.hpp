@@ -31,6 +31,7 @@
 #include <Eigen/Core>
 
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -70,6 +71,10 @@ struct Proposal {
   // proposal the loop makes itself where the base fit's values are suspect (residual_loop.cpp,
   // declared boundaries refitted at every node).
   bool start_from_data = false;
+  // Start values of the effect's own parameters by network name; when given they replace the ones
+  // `coefficients` would give (a claim refitted from another candidate's base starts from its own
+  // fitted effect: residual_loop.cpp, refit_claim_from_better_basin).
+  std::map<std::string, double> effect_start;
   double gain_k2 = 0;                  // linearised RSS reduction after projection [K^2]
   double rss_fraction = 0;             // gain / base RSS (on the screening rows)
   double score = 0;                    // information-criterion gain on the effective sample size (> 0 = selected)
