@@ -640,6 +640,26 @@ int weakest_node(const CandidateContext& ctx, const CandidateResult& c) {
   return weakest;
 }
 
+CandidateResult refit_more_nodes(const CandidateContext& ctx, const CandidateResult& c, int node) {
+  const th::Network& base = *ctx.base;
+  if (c.spec.nodes.empty()) throw std::invalid_argument("refit_more_nodes: the candidate acts on no node");
+  CandidateResult r = c;
+  EffectSpec spec = c.spec;
+  spec.nodes.push_back(node);
+  std::sort(spec.nodes.begin(), spec.nodes.end());
+  std::map<std::string, double> values;
+  for (const auto& name : c.effect_params) values[name] = c.values[c.net.param_index(name)];
+  const std::string first = "_" + base.nodes[static_cast<std::size_t>(c.spec.nodes.front())].name;
+  const std::string added = "_" + base.nodes[static_cast<std::size_t>(node)].name;
+  for (const auto& name : c.effect_params)
+    if (name.size() > first.size() && name.compare(name.size() - first.size(), first.size(), first) == 0)
+      values[name.substr(0, name.size() - first.size()) + added] = values[name];
+  AugmentedModel am = augment(base, c.values.head(base.param_count()), spec, values);
+  const th::FitResult fr = th::fit_network(am.net, *ctx.fit_refit, joint_options(ctx, am, am.params, *ctx.fit_refit, c.held));
+  record_fit(ctx, am, spec, fr, r, c.held);
+  return r;
+}
+
 bool prune_weak_nodes(const CandidateContext& ctx, CandidateResult& c) {
   bool pruned = false;
   for (int w = weakest_node(ctx, c); w >= 0; w = weakest_node(ctx, c)) {

@@ -53,6 +53,10 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p);
 // The candidate without its `drop`-th node, refitted jointly from its values (status "fitted").
 CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateResult& c, std::size_t drop);
 
+// The fitted candidate refitted jointly with the base at one node more, from its own values; the
+// added node's parameters start at those of the candidate's first node (an equal share).
+CandidateResult refit_more_nodes(const CandidateContext& ctx, const CandidateResult& c, int node);
+
 // The node of a fitted multi-node candidate whose key parameter is weakest, when it is below
 // ctx.param_z sigma, at its bound or not identifiable (-1: none, or a single node).
 int weakest_node(const CandidateContext& ctx, const CandidateResult& c);

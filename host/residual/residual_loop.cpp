@@ -68,6 +68,7 @@ class ResidualLoop {
     prune_chosen_on_check();
     polish_chosen();
     refit_claim_from_better_basin();
+    extend_claim_to_more_nodes();
     challenge_sensor_claim();
     challenge_heat_claim();
     try_unprobed_heat();
@@ -650,6 +651,58 @@ class ResidualLoop {
     decide_again(before);
   }
 
+  // Stage 7b'': heat at friction sites often acts at every site (a run-in raises all friction heat
+  // after a start), but the screening proposes the effect where it shows most, and the node pruning
+  // only ever removes nodes. A claim of such heat that leaves the check error well above the floor
+  // is refitted at each other node with a heat source too, from its own values; the wider claim
+  // replaces it only when it passes every test and cuts the check error by a further
+  // `check_improvement`, so a node the data hardly need is not named on a last-digit gain.
+  void extend_claim_to_more_nodes() {
+    const double factor = o_.extend_claim_above_floor;
+    if (L_.chosen < 0 || !(factor > 0)) return;
+    const CandidateResult claim = L_.candidates[static_cast<std::size_t>(L_.chosen)];
+    const EffectKind k = claim.spec.kind;
+    if (k != EffectKind::HeatSourceTransient && k != EffectKind::TemperatureDependentHeat && k != EffectKind::ExtraHeatInput) return;
+    const double floor = std::max(L_.check_floor_k, L_.noise_sigma_k);
+    if (!(claim.check.rmse_k > factor * floor)) return;
+    std::vector<int> more;
+    for (int n = 0; n < base_.node_count(); ++n)
+      if (std::find(claim.spec.nodes.begin(), claim.spec.nodes.end(), n) == claim.spec.nodes.end() &&
+          source_heat_at_w0(base_, bp_, n) > 0)
+        more.push_back(n);
+    if (more.empty()) return;
+    say(fmt::format("residual: {} leaves the check error at {:.4g} K, {:.1f}x the floor {:.3g} K: refitting it also at each other heat "
+                    "source",
+                    claim.label, claim.check.rmse_k, claim.check.rmse_k / floor, floor));
+    context_on_current_base();
+    std::vector<CandidateResult> wider(more.size());
+    run_tasks(more.size(), o_.threads, o_.progress, [&](std::size_t i, const ProgressFn& say_i) {
+      CandidateContext ctx = ctx_;
+      ctx.progress = say_i;
+      try {
+        wider[i] = refit_more_nodes(ctx, claim, more[i]);
+      } catch (const std::exception& e) {
+        wider[i] = claim;
+        wider[i].status = "failed";
+        wider[i].reason = std::string("fit failed: ") + e.what();
+      }
+      wider[i].variant = claim.variant + (claim.variant.empty() ? "" : ", ") + "extended to " +
+                         base_.nodes[static_cast<std::size_t>(more[i])].name;
+      if (say_i)
+        say_i(fmt::format("residual: {}: fit rms {:.4g} K, check {:.4g} K, key |z| {:.1f}", wider[i].label, wider[i].fit.rmse_k,
+                          wider[i].check.rmse_k, wider[i].key_z));
+    });
+    for (CandidateResult& c : wider) {
+      if (c.status == "fitted" && !(claim.check.rmse_k >= o_.check_improvement * c.check.rmse_k))
+        c.vetoed = fmt::format("it cuts the check error only x{:.2f} over {} at fewer nodes ({:.4g} -> {:.4g} K; a wider claim needs "
+                               "x{:.2f})",
+                               claim.check.rmse_k / c.check.rmse_k, claim.label, claim.check.rmse_k, c.check.rmse_k,
+                               o_.check_improvement);
+      L_.candidates.push_back(std::move(c));
+    }
+    decide_again(L_.chosen);
+  }
+
   // Stage 7c: a probe's lag or drift and heat at a node no probe measures both show up only through
   // the probed columns, and the base fit absorbs most of an unprobed node's heat into its own
   // parameters (the screening then hardly sees it). So before a sensor-side effect is named, speed-
@@ -848,6 +901,9 @@ class ResidualLoop {
       if (!(b_ok && z_ok && id_ok && c_ok)) {
         c.status = "rejected";
         c.reason = why;
+      } else if (!c.vetoed.empty()) {
+        c.status = "rejected";
+        c.reason = why + "; but " + c.vetoed;
       } else if (check_at_floor) {
         c.status = "rejected";
         c.reason = why + fmt::format("; but the base model's check error ({:.3g} K) is already within the check recordings' "

@@ -94,6 +94,13 @@ struct LoopOptions {
   // another family that fits far better has given that back (suite seed 99 additive run-in: the
   // transient claimed at 0.013 K on the fit part, x3.5 on the check, the latent mass at 0.003 K).
   double claim_from_better_basin_factor = 2.0;
+  // A claim of heat at friction sites (a run-in transient, temperature-dependent or extra heat) whose
+  // check error stays above this multiple of the check recordings' measurement floor (a ratio; 0 =
+  // never) is refitted at each other node with a heat source too; the wider claim replaces it only
+  // when it passes and cuts the check error by `check_improvement` more. WHY: the screening proposes
+  // a multi-node effect where it shows most and the node pruning never adds one back (suite seed
+  // 3141 additive run-in at both bearings: claimed at the rear bearing alone, x2.3).
+  double extend_claim_above_floor = 2.0;
   unsigned threads = 0;                 // independent refits run at once (0 = the machine's cores); the result does not depend on it
   ScreeningOptions screening;
   std::function<void(const std::string&)> progress;
@@ -156,6 +163,10 @@ struct CandidateResult {
   // why the fit recordings cannot decide this candidate, measured (identifiability.hpp); "" when
   // nothing says so. Set by the decision for a candidate it does not claim; part of `reason` too.
   std::string undecided;
+  // A reason a later stage found for never claiming this candidate (e.g. a wider claim that cuts
+  // the check error too little over the narrower one); every decision, also a reopened one, rejects
+  // it with this reason when it would otherwise pass. "" when none.
+  std::string vetoed;
   // the joint refit its evidence comes from: Levenberg-Marquardt iterations in all, chunks past
   // the budget (LoopOptions::refit_continuation), and whether it ended at a minimum
   int refit_iterations = 0;
