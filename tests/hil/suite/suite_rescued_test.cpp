@@ -65,7 +65,11 @@ const std::vector<RescuedSet>& rescued_sets() {
        {{"heat_source_transient_additive_01",
          "claimed at the rear bearing alone (x2.3): the screening proposed the run-in where it shows most and the node pruning "
          "only removes nodes; a heat claim that leaves the check well above its floor is now refitted at each other heat source "
-         "too (residual_loop.cpp, extend_claim_to_more_nodes)"}}},
+         "too (residual_loop.cpp, extend_claim_to_more_nodes)"},
+        {"temperature_dependent_heat_rising_01",
+         "coupled_heat@rear_bearing claimed (x8.7, a wrong family): the truth's family passed too but at both bearings (check "
+         "0.0147 K against 0.0130 K), and only the chosen effect was pruned on the check; a passing rival within 2x of it now is "
+         "too (residual_loop.cpp, prune_chosen_on_check)"}}},
       {5150, 1,  // a fresh unseen seed
        {{"second_boundary_coolant_01",
          "extra_heat_input claimed (x2.2, a wrong family): the declared coolant (0.45 W/K at the front bearing) bent the base fit "
