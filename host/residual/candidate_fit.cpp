@@ -598,14 +598,22 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
   return cr;
 }
 
+std::map<std::string, double> fitted_effect_values(const CandidateResult& c) {
+  std::map<std::string, double> values;
+  for (const auto& name : c.effect_params) {
+    const int i = c.net.param_index(name);
+    if (i >= 0 && i < c.values.size()) values[name] = c.values[i];
+  }
+  return values;
+}
+
 CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateResult& c, std::size_t drop) {
   const th::Network& base = *ctx.base;
   CandidateResult r = c;
   EffectSpec spec = c.spec;
   const std::string dropped = base.nodes[static_cast<std::size_t>(spec.nodes.at(drop))].name;
   spec.nodes.erase(spec.nodes.begin() + static_cast<std::ptrdiff_t>(drop));
-  std::map<std::string, double> values;
-  for (const auto& name : c.effect_params) values[name] = c.values[c.net.param_index(name)];
+  std::map<std::string, double> values = fitted_effect_values(c);
   if (spec.kind == EffectKind::HeatSourceTransient) values["g_transient_decay"] += values["g_transient_" + dropped];
   AugmentedModel am = augment(base, c.values.head(base.param_count()), spec, values);
   // (nuisance parameters the candidate's refit held stay held)
@@ -647,8 +655,7 @@ CandidateResult refit_more_nodes(const CandidateContext& ctx, const CandidateRes
   EffectSpec spec = c.spec;
   spec.nodes.push_back(node);
   std::sort(spec.nodes.begin(), spec.nodes.end());
-  std::map<std::string, double> values;
-  for (const auto& name : c.effect_params) values[name] = c.values[c.net.param_index(name)];
+  std::map<std::string, double> values = fitted_effect_values(c);
   const std::string first = "_" + base.nodes[static_cast<std::size_t>(c.spec.nodes.front())].name;
   const std::string added = "_" + base.nodes[static_cast<std::size_t>(node)].name;
   for (const auto& name : c.effect_params)

@@ -6,6 +6,7 @@
 #include "host/residual/screening.hpp"
 
 #include <functional>
+#include <map>
 #include <string>
 #include <vector>
 
@@ -52,6 +53,9 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p);
 
 // The candidate without its `drop`-th node, refitted jointly from its values (status "fitted").
 CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateResult& c, std::size_t drop);
+
+// A fitted candidate's own effect parameters by network name, at their fitted values.
+std::map<std::string, double> fitted_effect_values(const CandidateResult& c);
 
 // The fitted candidate refitted jointly with the base at one node more, from its own values; the
 // added node's parameters start at those of the candidate's first node (an equal share).

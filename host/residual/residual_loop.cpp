@@ -30,6 +30,8 @@ namespace {
 // A passing rival within this factor of the chosen effect's check error is pruned on the check too.
 constexpr double kRivalPruneWithin = 2.0;
 
+// A refit's variant with what this refit does differently appended ("..., pruned on the check").
+std::string variant_with(const std::string& variant, const std::string& note) { return variant.empty() ? note : variant + ", " + note; }
 
 std::vector<std::string> columns_of(const th::Network& net) {
   std::vector<std::string> c;
@@ -569,7 +571,7 @@ class ResidualLoop {
       // 2026 unprobed shaft_01 then lost the shaft's heat to coupled heat)
       CandidateResult pruned = c;
       if (prune_on_check(pruned)) {
-        pruned.variant += (pruned.variant.empty() ? "" : ", ") + std::string("pruned on the check");
+        pruned.variant = variant_with(pruned.variant, "pruned on the check");
         rivals.push_back(std::move(pruned));
       }
     }
@@ -649,10 +651,11 @@ class ResidualLoop {
     decide();
   }
 
-  // Stage 7b': a claim (or a partial explanation) whose refit fits the fit recordings several times
-  // worse than another candidate sits in a basin of the base values: the base fit absorbed part of
-  // the effect, every start of the claim's refit held those values, and a candidate of another
-  // family that fits far better has given much of that back. The claimed effect is refitted once
+  // Stage 7d' (after the unprobed rivals, see run()): a claim (or a partial explanation) whose
+  // refit fits the fit recordings several times worse than another candidate sits in a basin of
+  // the base values: the base fit absorbed part of the effect, every start of the claim's refit
+  // held those values, and a candidate of another family that fits far better has given much of
+  // that back. The claimed effect is refitted once
   // more from that candidate's base values (refit_candidate, start 6), starting from its own fitted
   // effect, and the decision is taken again: the held-out check chooses between the two refits of
   // the same effect, so this can cut the claim's check error but never name another family.
@@ -668,11 +671,8 @@ class ResidualLoop {
                     c.fit.rmse_k, d.label, d.fit.rmse_k, c.label, d.label));
     Proposal p;
     p.spec = c.spec;
-    p.variant = c.variant + (c.variant.empty() ? "" : ", ") + "from the base of " + d.label;
-    for (const auto& name : c.effect_params) {
-      const int i = c.net.param_index(name);
-      if (i >= 0 && i < c.values.size()) p.effect_start[name] = c.values[i];
-    }
+    p.variant = variant_with(c.variant, "from the base of " + d.label);
+    p.effect_start = fitted_effect_values(c);
     const int before = L_.chosen;
     context_on_current_base();
     ctx_.other_base_params = d.values.head(base_.param_count());
@@ -684,7 +684,7 @@ class ResidualLoop {
     decide_again(before);
   }
 
-  // Stage 7b'': heat at friction sites often acts at every site (a run-in raises all friction heat
+  // Stage 7d'': heat at friction sites often acts at every site (a run-in raises all friction heat
   // after a start), but the screening proposes the effect where it shows most, and the node pruning
   // only ever removes nodes. A claim of such heat that leaves the check error well above the floor
   // is refitted at each other node with a heat source too, from its own values; the wider claim
@@ -719,8 +719,7 @@ class ResidualLoop {
         wider[i].status = "failed";
         wider[i].reason = std::string("fit failed: ") + e.what();
       }
-      wider[i].variant = claim.variant + (claim.variant.empty() ? "" : ", ") + "extended to " +
-                         base_.nodes[static_cast<std::size_t>(more[i])].name;
+      wider[i].variant = variant_with(claim.variant, "extended to " + base_.nodes[static_cast<std::size_t>(more[i])].name);
       if (say_i)
         say_i(fmt::format("residual: {}: fit rms {:.4g} K, check {:.4g} K, key |z| {:.1f}", wider[i].label, wider[i].fit.rmse_k,
                           wider[i].check.rmse_k, wider[i].key_z));
