@@ -2,6 +2,7 @@
 #include "commands.hpp"
 
 #include "cli_support.hpp"
+#include "host/io/output_file.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
@@ -55,8 +56,7 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
   const int m = static_cast<int>(p.source_nodes.size());
   {
     const std::string path = a.out_dir + "/heat_sources.csv";
-    std::ofstream f(path);
-    if (!f) throw CommandError(kExitFailure, "cannot write " + path);
+    std::ostringstream f;
     f << "# model: " << a.model << "\n# recording: " << a.recording << "\n# method: " << a.method
       << "\n# alpha_rule: " << r.rule << "\n# alpha_K2_per_W2: " << fmt::format("{:.6g}", r.alpha)
       << "\n# noise_sigma_K: " << fmt::format("{:.6g}", r.noise_sigma_k) << (r.noise_estimated ? " (estimated)" : "")
@@ -70,13 +70,14 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
       for (int j = 0; j < m; ++j) f << fmt::format(",{:.5f},{:.5f}", r.heat_w(i, j), r.heat_sigma_w(i, j));
       f << "\n";
     }
+    io::write_output_file(path, f.str(), "heat sources");
   }
   {
     const std::string path = a.out_dir + "/heat_alpha_scan.csv";
-    std::ofstream f(path);
-    if (!f) throw CommandError(kExitFailure, "cannot write " + path);
+    std::ostringstream f;
     f << "alpha_K2_per_W2,rss_K2,seminorm_W2,dof,gcv\n";
     for (const auto& s : r.scan) f << fmt::format("{:.6g},{:.8g},{:.8g},{:.6g},{:.8g}\n", s.alpha, s.rss_k2, s.seminorm_w2, s.dof, s.gcv);
+    io::write_output_file(path, f.str(), "alpha scan");
   }
   namespace rp = btsm::report;
   rp::save_figure(rp::heat_figure(net, rec, p, r, cols, a.method), a.out_dir + "/heat_sources",
@@ -84,6 +85,9 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
 }
 
 void run_heat(const HeatArgs& a) {
+  if (!a.out_dir.empty())
+    for (const char* name : {"/heat_sources.csv", "/heat_alpha_scan.csv", "/heat_sources.png", "/heat_sources.svg"})
+      io::refuse_output_over_input(a.out_dir + name, "--out", {a.model, a.recording});
   th::HeatInverseOptions o;
   try {
     o.order = th::parse_tikhonov_order(a.method);
@@ -131,6 +135,12 @@ void run_heat(const HeatArgs& a) {
   }
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::cerr << fmt::format("heat: done in {:.2f} s\n", secs);
+  // Nothing is written from a result that is not a number: the model's terms overflowed at the
+  // recording's speeds (a network unstable there), which no choice of alpha repairs.
+  if (!r.heat_w.allFinite() || !std::isfinite(r.residual_rms_k))
+    throw CommandError(kExitFailure, a.recording + ": the inverse with model " + a.model +
+                                         " gives heat that is not a number (the model's terms overflow at this recording's "
+                                         "speeds: is the model valid there? check it with btsm validate); nothing written");
   if (!a.out_dir.empty()) write_outputs(a, model.network, rec, p, r, cols);
 
   const int m = static_cast<int>(p.source_nodes.size());

@@ -1,6 +1,7 @@
 // btsm monitor | record: the live sample stream, shown or written to a recording.
 #include "cmd_link_support.hpp"
 #include "common/wire_messages.hpp"
+#include "host/io/output_file.hpp"
 #include "host/link/device_keys.hpp"
 #include "host/link/recorder.hpp"
 
@@ -175,6 +176,9 @@ void run_record(const RecordArgs& a) {
   const ModuleIdentity id = identify(*conn.session);
   std::cerr << fmt::format("record: module {} firmware {} via {} -> {}\n", device_id_text(id.info.device_id),
                            firmware_version(id.info), id.link, a.out);
+  // A recording of hours is never replaced silently: the old file is kept beside the new one.
+  const std::string kept = io::keep_existing_as_backup(a.out);
+  if (!kept.empty()) std::cerr << fmt::format("record: {} existed; kept it as {}\n", a.out, kept);
   RecordOptions ro;
   ro.out_path = a.out;
   ro.duration_s = a.duration;
@@ -213,7 +217,7 @@ void register_record(CLI::App& app) {
       "Progress goes to stderr; Ctrl-C stops cleanly.\n"
       "  btsm record --port /tmp/btsm-sim --out rec.csv --duration 3600");
   add_link_options(*c, a->link);
-  c->add_option("--out", a->out, "CSV file to write")->required();
+  c->add_option("--out", a->out, "CSV file to write (an existing one is kept as FILE.~N~)")->required();
   c->add_option("--duration", a->duration, "stop after this much module time, s (0 = no limit)")->capture_default_str();
   c->add_option("--samples", a->samples, "stop after this many rows (0 = no limit)")->capture_default_str();
   c->add_option("--reconnect", a->reconnect, "keep reopening a lost link for this many seconds (0 = fail)")

@@ -74,6 +74,8 @@ void check_map_before_flashing(const FlashModelArgs& a, Session& session, const 
 
 // reduced.json keeps where the module's model holds in speed (reduce's speed check): said before
 // flashing, loudly when reduce was forced past a gap. A raw blob does not carry it.
+void print_speed_coverage(const nlohmann::json& c);
+
 void print_valid_speed_range(const std::string& file) {
   nlohmann::json j;
   try {
@@ -82,7 +84,14 @@ void print_valid_speed_range(const std::string& file) {
     return;  // a raw blob (or a JSON load_model_blob already accepted without the check)
   }
   if (!j.is_object() || !j.contains("speed_coverage") || !j["speed_coverage"].is_object()) return;
-  const auto& c = j["speed_coverage"];
+  try {
+    print_speed_coverage(j["speed_coverage"]);
+  } catch (const nlohmann::json::exception& e) {  // informative only: the blob itself was checked
+    std::cerr << "flash-model: WARNING: " << file << ": speed_coverage is malformed (" << e.what() << "); not shown\n";
+  }
+}
+
+void print_speed_coverage(const nlohmann::json& c) {
   const auto& r = c.value("valid_speed_range_rpm", nlohmann::json::array());
   if (r.is_array() && r.size() == 2 && r[0].is_number() && r[1].is_number())
     std::cerr << fmt::format("flash-model: valid (reduce's speed check) for {:.0f}-{:.0f} rpm\n", r[0].get<double>(), r[1].get<double>());

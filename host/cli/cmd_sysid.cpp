@@ -2,6 +2,7 @@
 #include "cli_support.hpp"
 #include "commands.hpp"
 
+#include "host/io/output_file.hpp"
 #include "host/thermal/detector_calibration.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
@@ -50,6 +51,11 @@ struct FitArgs {
 };
 
 void run_fit(const FitArgs& a) {
+  {
+    std::vector<std::string> inputs = a.recordings;
+    if (!a.network.empty()) inputs.push_back(a.network);
+    io::refuse_output_over_input(a.out, "--out", inputs);
+  }
   Network net;
   try {
     if (!a.preset.empty() == !a.network.empty()) throw CommandError(kExitUsage, "give exactly one of --preset or --network");
@@ -314,6 +320,14 @@ std::vector<std::string> channel_map(const Network& net, const json& model_json,
 }
 
 void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_detector) {
+  {
+    std::vector<std::string> inputs = a.calibrate;
+    inputs.push_back(a.model);
+    io::refuse_output_over_input(a.out, "--out", inputs);
+    inputs.push_back(a.out);
+    io::refuse_output_over_input(a.blob, "--blob", inputs);
+    if (!a.blob.empty() && a.blob == a.out) throw CommandError(kExitUsage, "--blob and --out name the same file " + a.out);
+  }
   FittedModel model;
   try {
     model = load_model(a.model);
@@ -329,7 +343,13 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   for (std::size_t i = 0; i < o.speeds_rpm.size(); ++i)
     if (!(o.speeds_rpm[i] > 0) || o.speeds_rpm[i] > 65534 || (i > 0 && !(o.speeds_rpm[i] > o.speeds_rpm[i - 1])))
       throw CommandError(kExitUsage, "--speeds: '" + a.speeds + "': each in 1..65534 rpm, strictly ascending");
-  const std::vector<std::string> map_lines = channel_map(net, model.json, a.channels, o);
+  std::vector<std::string> map_lines;
+  try {
+    map_lines = channel_map(net, model.json, a.channels, o);
+  } catch (const json::exception& e) {  // an entry of the wrong shape ("channel": "1", a bare number)
+    throw CommandError(kExitUsage, a.model + ": channel_map: each entry must be an object with a number 'channel' "
+                                             "and a string 'node' (" + std::string(e.what()) + ")");
+  }
   const std::vector<double> ends = number_list(a.stop_phases, "--stop-phases");
   if (ends.size() > kModelEarlyStopPhases) throw CommandError(kExitUsage, "--stop-phases: at most 2 phase ends");
   o.stop_phase_end_s.fill(0.0);
@@ -475,9 +495,8 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   save_json(a.out, j);
   std::cerr << "reduce: wrote " << a.out << "\n";
   if (!a.blob.empty()) {
-    std::ofstream f(a.blob, std::ios::binary);
-    f.write(reinterpret_cast<const char*>(r.blob.data()), static_cast<std::streamsize>(r.blob.size()));
-    if (!f) throw CommandError(kExitFailure, a.blob + ": write failed");
+    io::write_output_file(a.blob, std::string_view(reinterpret_cast<const char*>(r.blob.data()), r.blob.size()),
+                          "model blob");
     std::cerr << "reduce: wrote " << a.blob << " (" << r.blob.size() << " bytes, format version " << int(kReducedModelVersion) << ")\n";
   }
   if (a.json_out) {

@@ -5,6 +5,7 @@
 
 #include <fmt/core.h>
 
+#include <cstdio>
 #include <exception>
 #include <iostream>
 
@@ -36,9 +37,20 @@ int main(int argc, char** argv) {
     const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
     std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": " << e.what() << "\n";
     return btsm::cli::kExitUsage;
+  } catch (const nlohmann::json::exception& e) {  // a JSON input of the wrong shape no reader named
+    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
+    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": a JSON input has the wrong shape: " << e.what()
+              << "\n";
+    return btsm::cli::kExitUsage;
   } catch (const std::exception& e) {
     const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
     std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": error: " << e.what() << "\n";
+    return btsm::cli::kExitFailure;
+  }
+  // Tables and --json go to stdout: a full disk or closed pipe there is a failed run, not exit 0.
+  std::cout.flush();
+  if (!std::cout || std::fflush(stdout) != 0 || std::ferror(stdout)) {
+    std::cerr << "btsm: error: writing the output to stdout failed\n";
     return btsm::cli::kExitFailure;
   }
   return 0;

@@ -13,6 +13,7 @@
 #include "host/thermal/fit_noise_floor.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/simulator.hpp"
+#include "host/thermal/validate.hpp"
 
 #include <fmt/core.h>
 
@@ -175,13 +176,21 @@ class ResidualLoop {
   void evaluate_base_model() {
     meas_fit_ = measured_columns_of(base_, fit_);
     meas_check_ = measured_columns_of(base_, check_);
+    // A base that diverges on a recording (a given model unstable at its speeds) would leave NaN
+    // rows that drop out of every error: "base rms 0 K" and a verdict on nothing.
+    const auto require_finite = [&](const Evaluation& ev, const th::Recording& rec) {
+      if (const std::string problem = th::prediction_problem(base_, ev.nodes_c, rec); !problem.empty())
+        throw std::invalid_argument(rec.source + ": the base model: " + problem);
+    };
     for (std::size_t r = 0; r < fit_.size(); ++r) {
       Evaluation ev = evaluate_model(base_, bp_, fit_[r], nullptr, &bx0_[r]);
+      require_finite(ev, fit_[r]);
       L_.fit_resid_before.push_back(ev.residual_k);
       nodes_fit_.push_back(ev.nodes_c);
     }
     for (const auto& r : check_) {
       Evaluation ev = evaluate_model(base_, bp_, r);
+      require_finite(ev, r);
       L_.check_resid_before.push_back(ev.residual_k);
       L_.check_model_before.push_back(ev.model_c);
       nodes_check_.push_back(ev.nodes_c);

@@ -1,6 +1,7 @@
 // Residual loop report (see residual_report.hpp).
 #include "host/residual/residual_report.hpp"
 
+#include "host/io/output_file.hpp"
 #include "host/report/plot_style.hpp"
 #include "host/report/thermal_figures.hpp"
 
@@ -202,16 +203,8 @@ void write_report(const LoopResult& r, const std::vector<thermal::Recording>& ch
   std::error_code ec;
   std::filesystem::create_directories(dir, ec);
   if (ec) throw std::runtime_error("cannot create report directory " + dir + ": " + ec.message());
-  {
-    std::ofstream f(dir + "/residual_result.json");
-    if (!f) throw std::runtime_error("cannot write " + dir + "/residual_result.json");
-    f << to_json(r).dump(2) << "\n";
-  }
-  {
-    std::ofstream f(dir + "/residual_table.txt");
-    if (!f) throw std::runtime_error("cannot write " + dir + "/residual_table.txt");
-    f << format_table(r);
-  }
+  io::write_output_file(dir + "/residual_result.json", to_json(r).dump(2) + "\n", "residual result");
+  io::write_output_file(dir + "/residual_table.txt", format_table(r), "residual table");
   namespace rp = btsm::report;
   if (check.empty() || r.check_resid_before.empty()) return;
   const thermal::Recording& rec = check[0];

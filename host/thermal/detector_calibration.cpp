@@ -62,7 +62,14 @@ std::array<std::vector<double>, kModelChannels> replay_residuals(const ReducedMo
       next_step = rec.time_s[i] + dt;
       continue;
     }
-    // The module steps once per elapsed dt (its sweeps and model steps share the schedule).
+    // The module steps once per elapsed dt (its sweeps and model steps share the schedule). A gap
+    // of months between two rows is not a recording of the module running: refused, not replayed.
+    constexpr double kMaxStepsPerGap = 1.0e6;
+    if ((rec.time_s[i] - next_step) / dt > kMaxStepsPerGap)
+      throw std::invalid_argument(fmt::format("{}: a gap of {:.6g} s before t = {:.6g} s (data row {}): the module's model would be "
+                                              "replayed for more than {:.0f} steps of {:g} s across it; split the recording there",
+                                              rec.source, rec.time_s[i] - rec.time_s[i - 1], rec.time_s[i], i + 1,
+                                              kMaxStepsPerGap, dt));
     while (rec.time_s[i] + 1e-9 >= next_step) {
       int32_t pred[kModelChannels];
       step(q, st, rpm, amb, pred);

@@ -425,6 +425,10 @@ ModelWithParameters load_model_with_parameters(const std::string& path_or_preset
     if (!std::isfinite(m.params(i)))
       throw std::invalid_argument(path_or_preset + ": parameter '" + m.network.params[i].name +
                                   "' has no value (fit the model first and pass the fit result)");
+  // A network's nominal values face the same checks as a fitted model's (bounds, capacitances,
+  // stability): a resistance of -1 K/W would be used as given otherwise.
+  if (const std::string problems = model_problems(m.network, m.params); !problems.empty())
+    throw std::invalid_argument(path_or_preset + ": not a usable model: " + problems);
   return m;
 }
 

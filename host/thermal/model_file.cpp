@@ -1,6 +1,8 @@
 // Fitted-model JSON reader and the checks every loaded model passes.
 #include "model_file.hpp"
 
+#include "host/io/output_file.hpp"
+
 #include "host/io/json_input.hpp"
 
 #include <Eigen/Eigenvalues>
@@ -108,10 +110,7 @@ FittedModel load_model(const std::string& path) {
 }
 
 void save_json(const std::string& path, const nlohmann::json& j) {
-  std::ofstream f(path);
-  if (!f) throw std::runtime_error(path + ": cannot write");
-  f << j.dump(2) << "\n";
-  if (!f) throw std::runtime_error(path + ": write failed");
+  io::write_output_file(path, j.dump(2) + "\n", "JSON");
 }
 
 }  // namespace btsm::thermal

@@ -163,6 +163,12 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
     if (!rec.time_s.empty() && !(t > rec.time_s.back()))
       fail(source, line_no, 1, "column 'time_s': time does not increase (" + shown(cells[0]) + " after " +
                                    format_compact(rec.time_s.back()) + ")");
+    if (std::abs(t) > kMaxRecordedTimeS)
+      fail(source, line_no, 1, "column 'time_s': " + shown(cells[0]) + " s is beyond the +-" + format_compact(kMaxRecordedTimeS) +
+                                   " s a recording may hold");
+    if (!rec.time_s.empty() && t - rec.time_s.back() < kMinRecordedStepS)
+      fail(source, line_no, 1, "column 'time_s': " + shown(cells[0]) + " is less than " + format_compact(kMinRecordedStepS) +
+                                   " s after the row before (" + format_compact(rec.time_s.back()) + "): a duplicated timestamp?");
     const double w = parse_number(cells[1], false, source, line_no, 2, "speed_rpm");
     if (w < 0) fail(source, line_no, 2, "column 'speed_rpm': negative speed '" + shown(cells[1]) + "'");
     if (w > kMaxRecordedSpeedRpm)

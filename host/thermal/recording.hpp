@@ -39,6 +39,11 @@ struct Recording {
 constexpr double kMinRecordedTempC = -273.15;
 constexpr double kMaxRecordedTempC = 10000.0;
 constexpr double kMaxRecordedSpeedRpm = 1.0e6;
+// Time: |time_s| up to 1e9 s (31 years of module time) and rows at least 1 ms apart (the module
+// samples every 1 s at the fastest). Beyond them a replay at the module's 5 s step runs for ever
+// and an inverse divides by a step of nanoseconds (57 kW out of 8 K in half a microsecond).
+constexpr double kMaxRecordedTimeS = 1.0e9;
+constexpr double kMinRecordedStepS = 1.0e-3;
 // Size cap of a recording file (about 4 million rows of 5 channels), stated in the error.
 constexpr std::size_t kMaxRecordingBytes = std::size_t{256} << 20;
 

@@ -8,6 +8,7 @@
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
 
+#include <cstdio>
 #include <cmath>
 #include <limits>
 #include <stdexcept>
@@ -100,6 +101,24 @@ Eigen::VectorXd estimate_initial_state(const Network& net, const Eigen::VectorXd
   return guess + ldlt.solve(-Ftr / (sn * sn) + w.cwiseProduct(prior - guess));
 }
 
+std::string prediction_problem(const Network& net, const Eigen::MatrixXd& predicted_c, const Recording& rec) {
+  for (Eigen::Index k = 0; k < predicted_c.rows(); ++k)
+    for (Eigen::Index n = 0; n < predicted_c.cols(); ++n) {
+      const double t = predicted_c(k, n);
+      if (std::isfinite(t) && t >= kMinRecordedTempC && t <= kMaxRecordedTempC) continue;
+      const auto r = static_cast<std::size_t>(k);
+      char value[32];
+      std::snprintf(value, sizeof value, "%.4g degC", t);
+      char where[96];
+      std::snprintf(where, sizeof where, "t = %.6g s (%.0f rpm)", r < rec.rows() ? rec.time_s[r] : NAN,
+                    r < rec.rows() ? rec.speed_rpm[r] : NAN);
+      return "the model's prediction diverges: node '" + net.nodes[static_cast<std::size_t>(n)].name + "' at " + where + " is " +
+             (std::isfinite(t) ? std::string(value) : std::string("not finite")) +
+             " (the network is not stable at the speeds this recording runs: its heat grows faster than it flows away)";
+    }
+  return "";
+}
+
 RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
                                        const ValidateOptions& opts) {
   RecordingValidation v;
@@ -114,6 +133,8 @@ RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd
                                 std::to_string(rec.rows()) + " rows)");
   v.initial_state_c = estimate_initial_state(net, params, rec, opts.initial_rows);
   v.predicted_c = simulate_recording(net, params, rec, v.initial_state_c);
+  if (const std::string problem = prediction_problem(net, v.predicted_c, rec); !problem.empty())
+    throw std::invalid_argument(rec.source + ": " + problem);
   const auto rows = static_cast<Eigen::Index>(rec.rows());
   for (std::size_t m = 0; m < cols.size(); ++m) {
     const Eigen::VectorXd meas = rec.temp_c.col(cols[m]);

@@ -50,6 +50,11 @@ RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd
 // Least-squares initial state over the first `rows` rows (see ValidateOptions::initial_rows).
 Eigen::VectorXd estimate_initial_state(const Network& net, const Eigen::VectorXd& params, const Recording& rec,
                                        std::size_t rows);
+// "" when every predicted temperature is finite and inside the range a recording may hold; else
+// where the prediction first leaves it (time, speed, node, value): a model unstable at a speed the
+// recording runs (its stability is checked at rest and at its reference speed only) diverges there,
+// and its NaN rows would otherwise drop out of every metric unnoticed.
+std::string prediction_problem(const Network& net, const Eigen::MatrixXd& predicted_c, const Recording& rec);
 ErrorMetrics error_metrics(const Eigen::VectorXd& reference, const Eigen::VectorXd& predicted);  // NaN skipped
 
 }  // namespace btsm::thermal

@@ -29,8 +29,16 @@ using Clock = std::chrono::steady_clock;
 nlohmann::json read_json(const fs::path& p) {
   std::ifstream in(p);
   if (!in) throw std::runtime_error("cannot open " + p.string());
-  return nlohmann::json::parse(in);
+  try {
+    return nlohmann::json::parse(in);
+  } catch (const nlohmann::json::exception& e) {
+    throw std::runtime_error(p.string() + ": not valid JSON: " + e.what());
+  }
 }
+
+// The answer a child writes goes to a part file, renamed over residual.json only when the child
+// exits 0: a stopped or failed rerun leaves the previous answer as it was.
+fs::path answer_part(const fs::path& dir) { return dir / "residual.json.part"; }
 
 struct Child {
   size_t index = 0;
@@ -108,8 +116,23 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     const fs::path dir = dir_of(c);
     const double secs = std::chrono::duration<double>(Clock::now() - ch.started).count();
     const nlohmann::json truth = read_json(dir / "truth.json");
+    try {  // every field the scoring reads, checked once: a bad truth.json is named, not a bare key error
+      (void)failed_case(truth, "", 0);
+    } catch (const nlohmann::json::exception& e) {
+      throw std::runtime_error((dir / "truth.json").string() + ": not a case's truth: " + e.what());
+    }
     CaseResult r;
-    if (timed_out) {
+    std::error_code rename_error;
+    if (ch.pid >= 0) {  // a child ran: its answer replaces the old one only when complete
+      std::error_code ec;
+      if (!timed_out && WIFEXITED(status) && WEXITSTATUS(status) == 0)
+        fs::rename(answer_part(dir), dir / "residual.json", rename_error);
+      else
+        fs::remove(answer_part(dir), ec);
+    }
+    if (rename_error) {
+      r = failed_case(truth, "cannot keep the answer as residual.json: " + rename_error.message(), secs);
+    } else if (timed_out) {
       r = failed_case(truth, fmt::format("btsm residual ran past {:.0f} s and was stopped", opts.timeout_s), secs);
     } else if (!WIFEXITED(status) || WEXITSTATUS(status) != 0) {
       r = failed_case(truth,
@@ -152,7 +175,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
       if (opts.reuse_answers && has_answer(dir_of(cases[next]))) break;  // scored by the loop above
       const fs::path dir = dir_of(cases[next]);
       const auto argv = residual_command(opts.btsm_path, dir.string(), opts.residual_args);
-      running.push_back({next, spawn(argv, (dir / "residual.json").string(), (dir / "residual.log").string()), Clock::now()});
+      running.push_back({next, spawn(argv, answer_part(dir).string(), (dir / "residual.log").string()), Clock::now()});
       ++next;
     }
     std::this_thread::sleep_for(std::chrono::milliseconds(100));

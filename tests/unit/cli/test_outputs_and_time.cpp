@@ -1,0 +1,139 @@
+// Outputs that must never cost the user a file, and inputs whose time axis or model cannot give a
+// meaningful answer: the rows of the hostile-input probe of 26 Nov that ended in exit 0 with a
+// wrong result or a lost file.
+#include "cli_run.hpp"
+#include "model_fixture.hpp"
+
+#include "host/io/output_file.hpp"
+
+#include <gtest/gtest.h>
+
+#include <filesystem>
+#include <stdexcept>
+#include <string>
+
+namespace btsm::test {
+namespace {
+
+bool mentions(const CliResult& r, const std::string& s) { return r.err.find(s) != std::string::npos; }
+
+// `fit rec.csv --out rec.csv` replaced a recording by model JSON (also when the fit then failed);
+// reduce and heat did the same to their model and recording. Refused before any work, with both
+// names, and the input is byte for byte what it was.
+TEST(Outputs, AnOutputNamingAnInputIsRefusedAndTheInputKept) {
+  ScratchDir d;
+  const std::string rec = recording_csv(200), model = spindle4_model_json();
+  write_text(d.file("rec.csv"), rec);
+  write_text(d.file("model.json"), model);
+  std::filesystem::create_directory(d.file("h"));
+  write_text(d.file("h/heat_sources.csv"), rec);
+  struct Case {
+    const char* args;
+    const char* option;
+    const char* input;
+  } cases[] = {
+      {"fit rec.csv --preset spindle4 --sum-c 20478.7 --out ./rec.csv", "--out", "rec.csv"},
+      {"reduce model.json --speeds 4000,6000 --out model.json", "--out", "model.json"},
+      {"reduce model.json --speeds 4000,6000 --out r.json --blob model.json", "--blob", "model.json"},
+      {"heat model.json h/heat_sources.csv --out h", "--out", "h/heat_sources.csv"},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = run_btsm(d, c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, c.option) && mentions(r, "refusing to overwrite")) << r.err;
+    EXPECT_EQ(read_text(d.file("rec.csv")), rec) << c.args;
+    EXPECT_EQ(read_text(d.file("model.json")), model) << c.args;
+    EXPECT_EQ(read_text(d.file("h/heat_sources.csv")), rec) << c.args;
+  }
+}
+
+// A blob written to a full disk was reported "wrote /dev/full (464 bytes)" with exit 0.
+TEST(Outputs, AWriteErrorFailsTheCommand) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  const CliResult r = run_btsm(d, "reduce model.json --speeds 4000,6000 --out r.json --blob /dev/full --force");
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(mentions(r, "/dev/full") && mentions(r, "No space left")) << r.err;
+}
+
+// The library calls behind those: the replace is all or nothing, the same file is recognised
+// under another name, and a recording's old file is kept under the first free backup name.
+TEST(Outputs, WriteReplaceAndBackupPrimitives) {
+  ScratchDir d;
+  const std::string f = d.file("out.txt");
+  io::write_output_file(f, "first\n", "test output");
+  io::write_output_file(f, "second\n", "test output");
+  EXPECT_EQ(read_text(f), "second\n");
+  for (const auto& e : std::filesystem::directory_iterator(d.path))  // no temporary left beside it
+    EXPECT_EQ(e.path().filename().string().find(".tmp."), std::string::npos) << e.path();
+  EXPECT_THROW(io::write_output_file(d.path, "x", "test output"), std::runtime_error);  // a directory
+  EXPECT_THROW(io::write_output_file("/dev/full", "x", "test output"), std::runtime_error);
+  EXPECT_THROW(io::write_output_file(d.file("no/such/dir/out.txt"), "x", "test output"), std::runtime_error);
+
+  std::filesystem::create_hard_link(f, d.file("link.txt"));
+  EXPECT_THROW(io::refuse_output_over_input(d.file("link.txt"), "--out", {f}), std::invalid_argument);
+  EXPECT_THROW(io::refuse_output_over_input(d.path + "/./out.txt", "--out", {f}), std::invalid_argument);
+  EXPECT_NO_THROW(io::refuse_output_over_input(d.file("new.txt"), "--out", {f}));
+
+  EXPECT_EQ(io::keep_existing_as_backup(d.file("absent.csv")), "");
+  write_text(d.file("rec.csv"), "old 1");
+  EXPECT_EQ(io::keep_existing_as_backup(d.file("rec.csv")), d.file("rec.csv.~1~"));
+  write_text(d.file("rec.csv"), "old 2");
+  EXPECT_EQ(io::keep_existing_as_backup(d.file("rec.csv")), d.file("rec.csv.~2~"));
+  EXPECT_EQ(read_text(d.file("rec.csv.~1~")), "old 1");
+  EXPECT_EQ(read_text(d.file("rec.csv.~2~")), "old 2");
+  EXPECT_FALSE(file_exists(d.file("rec.csv")));
+}
+
+// A time of 1e300 s was fitted ("converged", every parameter at a bound) and replayed by reduce's
+// detector calibration for ever; rows 1e-9 s apart gave 57 kW heat sources. Refused with the place.
+TEST(TimeAxis, TimesBeyondTheLimitsAreRefusedWithTheirPlace) {
+  ScratchDir d;
+  struct Case {
+    const char* text;
+    const char* says;
+  } cases[] = {{"1e300", "a recording may hold"}, {"1000000001", "a recording may hold"}, {"400.000000001", "duplicated timestamp"}};
+  for (const auto& c : cases) {
+    write_text(d.file("rec.csv"), recording_csv(200, [&](int row, int col, const std::string& text) {
+                 return row == 41 && col == 0 ? std::string(c.text) : text;
+               }));
+    for (const char* cmd : {"fit rec.csv --preset spindle4 --sum-c 20478.7 --out model.json", "heat spindle4 rec.csv"}) {
+      const CliResult r = run_btsm(d, cmd);
+      EXPECT_EQ(r.code, 2) << c.text << " " << cmd << "\n" << r.err;
+      EXPECT_TRUE(mentions(r, "rec.csv:44:1") && mentions(r, c.says)) << c.text << "\n" << r.err;
+    }
+  }
+}
+
+// A model whose speed law makes it unstable at the recording's speeds (speed_ref_rpm 1: every
+// source scaled by 6000^n) loads -- stability is checked at rest and at the reference speed --
+// and its NaN rows dropped out of every metric: validate scored the stopped rows alone, heat wrote
+// all -nan, residual reported "base rms 0 K". Now each names where the prediction diverges.
+TEST(Models, APredictionThatDivergesIsAnErrorNotAScore) {
+  ScratchDir d;
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  m["network"]["speed_ref_rpm"] = 1;
+  write_text(d.file("model.json"), m.dump(2));
+  write_text(d.file("rec.csv"), recording_csv(400));
+  const CliResult v = run_btsm(d, "validate model.json rec.csv --initial-rows 20 --json");
+  EXPECT_EQ(v.code, 2) << v.out << v.err;
+  EXPECT_TRUE(mentions(v, "rec.csv") && mentions(v, "diverges") && mentions(v, "6000 rpm")) << v.err;
+  const CliResult r = run_btsm(d, "residual --fit rec.csv --check rec.csv --network model.json --use-values --threads 1");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_TRUE(mentions(r, "diverges")) << r.err;
+  // heat replaces the model's friction sources by unknowns; a temperature-driven one it keeps
+  // overflows outright with the speed law referred to 1e-300 rpm
+  m["network"]["speed_ref_rpm"] = 1e-300;
+  m["network"]["parameters"].push_back({{"name", "k"}, {"unit", "W/K"}, {"min", 0}, {"max", 10}, {"log", false}});
+  m["network"]["sources"].push_back({{"name", "heat_T"}, {"node", "rear_bearing"},
+                                     {"operating", {{{"driven_by", {"rear_bearing", "ambient"}}, {"power", "k"}, {"speed_exponent", 1.5}}}}});
+  m["parameters"]["k"] = 0.01;
+  write_text(d.file("tiny.json"), m.dump(2));
+  const CliResult h = run_btsm(d, "heat tiny.json rec.csv --out h");
+  EXPECT_EQ(h.code, 1) << h.err;
+  EXPECT_TRUE(mentions(h, "not a number")) << h.err;
+  EXPECT_FALSE(file_exists(d.file("h/heat_sources.csv"))) << h.err;
+}
+
+}  // namespace
+}  // namespace btsm::test
