@@ -131,7 +131,9 @@ void run_heat(const HeatArgs& a) {
   try {
     r = th::solve_heat_inverse(p, o);
   } catch (const std::invalid_argument& e) {
-    throw CommandError(kExitUsage, e.what());
+    const std::string what = e.what();
+    throw CommandError(kExitUsage, a.recording + ": " + what +
+                                       (what.find("noise level") != std::string::npos ? " (or give it with --noise)" : ""));
   }
   const double secs = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
   std::cerr << fmt::format("heat: done in {:.2f} s\n", secs);

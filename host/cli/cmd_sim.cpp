@@ -10,6 +10,7 @@
 #include <csignal>
 #include <cmath>
 #include <filesystem>
+#include <fstream>
 #include <iostream>
 #include <memory>
 #include <thread>
@@ -84,6 +85,19 @@ void run_sim(const SimArgs& a) {
   o.elf_path = a.elf.empty() ? default_elf_path() : a.elf;
   if (o.board == sim::BoardKind::Avr && !std::filesystem::exists(o.elf_path))
     throw CommandError(kExitUsage, "--elf " + o.elf_path + ": no such firmware image (build it, or pass --elf)");
+  if (o.board == sim::BoardKind::Avr) {
+    // simavr loads whatever it is given and the core then "crashes" at its first instruction: a
+    // HEX file, a host binary or a truncated image is named here instead. ELF header: magic at 0,
+    // e_machine (little-endian u16) at 18, EM_AVR = 83.
+    std::ifstream f(o.elf_path, std::ios::binary);
+    unsigned char h[20] = {};
+    const bool read = f && f.read(reinterpret_cast<char*>(h), sizeof h) && !std::filesystem::is_directory(o.elf_path);
+    if (!read || h[0] != 0x7f || h[1] != 'E' || h[2] != 'L' || h[3] != 'F')
+      throw CommandError(kExitUsage, "--elf " + o.elf_path + ": not an ELF file (give the firmware's .elf, not its .hex)");
+    if (h[18] != 83 || h[19] != 0)
+      throw CommandError(kExitUsage, "--elf " + o.elf_path + ": an ELF file for another machine (e_machine " +
+                                         std::to_string(h[18] | (h[19] << 8)) + "), not an AVR image");
+  }
   o.truth_csv = a.truth_out;
   o.truth_period_s = a.truth_period_s;
   o.eeprom_path = a.eeprom;

@@ -202,7 +202,11 @@ class ResidualLoop {
     const int k = (o_.fit_base ? base_free_ : 0) + base_.node_count() * static_cast<int>(fit_.size());
     base_bic_ = bic(rss, n_fit, k);
     std::vector<double> sig;
-    for (const auto& m : meas_fit_) sig.push_back(th::estimate_noise_sigma(m));
+    for (std::size_t r = 0; r < meas_fit_.size(); ++r) try {
+        sig.push_back(th::estimate_noise_sigma(meas_fit_[r]));
+      } catch (const std::invalid_argument& e) {
+        throw std::invalid_argument(fit_[r].source + ": " + e.what());
+      }
     std::sort(sig.begin(), sig.end());
     L_.noise_sigma_k = sig[sig.size() / 2];
     L_.check_floor_k = measurement_floor(check_, meas_check_, L_.noise_sigma_k);

@@ -392,7 +392,10 @@ double estimate_noise_sigma(const Eigen::MatrixXd& measured) {
     if (std::isfinite(q)) s = std::max(s, q / std::sqrt(12.0));
     if (s > 0) per_channel.push_back(s);
   }
-  if (per_channel.empty()) throw std::invalid_argument("cannot estimate the noise level: no channel with 10 consecutive samples (give it explicitly)");
+  if (per_channel.empty())
+    throw std::invalid_argument("cannot estimate the noise level: no measured temperature column has 12 consecutive readings "
+                                "that vary (" + std::to_string(measured.rows()) + " rows, " + std::to_string(measured.cols()) +
+                                " measured columns)");
   std::sort(per_channel.begin(), per_channel.end());
   return per_channel[per_channel.size() / 2];
 }

@@ -135,5 +135,25 @@ TEST(Models, APredictionThatDivergesIsAnErrorNotAScore) {
   EXPECT_FALSE(file_exists(d.file("h/heat_sources.csv"))) << h.err;
 }
 
+// A HEX file, a host binary or a directory as --elf started a simulation that ended "AVR core
+// stopped (crashed)"; the heat inverse on readings that never vary said "give it explicitly"
+// without the file or the option. Both now name what and where.
+TEST(Inputs, AnImageThatIsNotAnAvrElfAndReadingsWithoutNoiseAreNamed) {
+  ScratchDir d;
+  write_text(d.file("fw.hex"), ":100000000C9434000C9446000C9446000C9446006A\n");
+  const CliResult hex = run_btsm(d, "sim-module --board avr --elf fw.hex --pty p --duration 1m");
+  EXPECT_EQ(hex.code, 2) << hex.err;
+  EXPECT_TRUE(mentions(hex, "fw.hex") && mentions(hex, "not an ELF")) << hex.err;
+  const CliResult host = run_btsm(d, "sim-module --board avr --elf /bin/ls --pty p --duration 1m");
+  EXPECT_EQ(host.code, 2) << host.err;
+  EXPECT_TRUE(mentions(host, "not an AVR image")) << host.err;
+  write_text(d.file("flat.csv"), recording_csv(200, [](int, int col, const std::string& text) {
+               return col >= 3 ? std::string("21.0000") : text;
+             }));
+  const CliResult h = run_btsm(d, "heat spindle4 flat.csv");
+  EXPECT_EQ(h.code, 2) << h.err;
+  EXPECT_TRUE(mentions(h, "flat.csv") && mentions(h, "noise level") && mentions(h, "--noise")) << h.err;
+}
+
 }  // namespace
 }  // namespace btsm::test
