@@ -222,7 +222,8 @@ void register_heat_commands(CLI::App& app) {
         return true;
       }, "Search range MIN MAX of alpha [K^2/W^2] (default 1e-10 1e3)")->expected(2);
   cmd->add_option("--alpha-points", args->alpha_points, "Grid points of the alpha scan (default 40)");
-  cmd->add_option("--noise", args->noise_k, "Measurement noise sigma [K] (default: estimated from the data)");
+  cmd->add_option("--noise", args->noise_k, "Measurement noise sigma [K] (default: estimated from the data)")
+      ->check(CLI::PositiveNumber);
   cmd->add_option("--scheme", args->scheme, "Time discretisation: cn (Crank-Nicolson, as in the paper; default) or exact (ZOH)");
   cmd->add_option("--nodes", args->nodes, "Comma-separated node names receiving unknown heat (default: the network's source nodes)");
   cmd->add_flag("--keep-model-sources", args->keep_model_sources,

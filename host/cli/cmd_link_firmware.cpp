@@ -1,6 +1,8 @@
 // btsm flash-firmware | keys: the per-device signing key, patched into the firmware image and
 // kept in the host's key store.
 #include "cmd_link_support.hpp"
+#include "common/device_key.hpp"
+#include "host/io/input_error.hpp"
 #include "host/link/device_keys.hpp"
 #include "host/link/firmware_image.hpp"
 
@@ -52,9 +54,22 @@ std::optional<DeviceKey> key_for_device(const FlashFirmwareArgs& a, uint32_t id)
   return ks.load(id);
 }
 
+// The image a Bluno takes through Optiboot: application flash only, below the 512-byte bootloader
+// at 0x7E00 (the key record ends there). Data at or past it would overwrite the bootloader or
+// fall off the 32 KiB part -- avrdude reports neither before writing.
+HexImage read_application_image(const std::string& path) {
+  HexImage img = read_intel_hex(path);
+  constexpr uint32_t kBootloaderStart = device_key::kFlashAddress + device_key::kRecordSize;
+  if (const auto first = img.bytes.lower_bound(kBootloaderStart); first != img.bytes.end())
+    throw io::InputError(fmt::format("{}: data at 0x{:04X}: an application image for the Bluno ends below the bootloader at "
+                                      "0x{:04X} (32 KiB flash, 512 B Optiboot)",
+                                      path, first->first, kBootloaderStart));
+  return img;
+}
+
 // Patches the key record into the image and writes it (0600).
 void write_patched_image(const FlashFirmwareArgs& a, uint32_t id, const DeviceKey& key, const std::string& out) {
-  HexImage img = read_intel_hex(a.hex.empty() ? default_hex_path() : a.hex);
+  HexImage img = read_application_image(a.hex.empty() ? default_hex_path() : a.hex);
   const auto r = patch_device_key(img, id, key);
   if (r.had_key)
     std::cerr << fmt::format("flash-firmware: image already held a key for device {}; replaced\n",
@@ -68,7 +83,7 @@ void run_flash_firmware(const FlashFirmwareArgs& a) {
   const std::optional<DeviceKey> key = key_for_device(a, id);
   const std::string out = a.out.empty() ? "btsm-fw-" + device_id_text(id) + ".hex" : a.out;
   if (key) write_patched_image(a, id, *key, out);
-  else read_intel_hex(a.hex.empty() ? default_hex_path() : a.hex);  // the dry run still checks the image
+  else read_application_image(a.hex.empty() ? default_hex_path() : a.hex);  // the dry run still checks the image
   const bool no_link_given = a.link.port.empty() && a.link.usb.empty() && a.link.ble.empty() && a.link.rfcomm.empty();
   const std::string port = a.dry_run && no_link_given ? std::string("PORT") : serial_port_for(spec_from(a.link));
   const auto cmd = avrdude_command(port, out, a.avrdude);

@@ -136,19 +136,27 @@ void register_residual_commands(CLI::App& app) {
                 "Do not refit the base: use the parameter values (and column mapping) of --network, a fitted model, and fit only the effects");
   cmd->add_option("--effects", a->effects, "Comma-separated subset of the effect families to try (default: all)");
   cmd->add_option("--bic-margin", a->opts.bic_margin, "BIC decrease an effect must achieve on the fit recordings (default 10)");
-  cmd->add_option("--check-improvement", a->opts.check_improvement, "Required ratio check RMSE before/after (default 1.25)");
+  cmd->add_option("--check-improvement", a->opts.check_improvement, "Required ratio check RMSE before/after (default 1.25)")
+      ->check(CLI::Range(1.0, 1.0e6));
   cmd->add_option("--explained-factor", a->opts.explained_factor,
-                  "Check RMSE cut that counts as explaining the residual; less is 'partial' (default 2)");
-  cmd->add_option("--param-z", a->opts.param_z, "Required |parameter| / sigma of the effect's key parameters (default 3)");
-  cmd->add_option("--max-candidates", a->opts.max_candidates, "Proposals refitted jointly, best screening score first; while they repeat a family at the same nodes, further distinct ones until this many distinct explanations are refitted (default 4)");
-  cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations of each start's effect-only stage (default 60)");
-  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations of each joint refit and of the base fit (default 300; one still descending at it goes on in chunks of 100 while a chunk gains > 0.1 %, up to 3x)");
+                  "Check RMSE cut that counts as explaining the residual; less is 'partial' (default 2)")
+      ->check(CLI::Range(1.0, 1.0e6));
+  cmd->add_option("--param-z", a->opts.param_z, "Required |parameter| / sigma of the effect's key parameters (default 3)")
+      ->check(CLI::NonNegativeNumber);
+  cmd->add_option("--max-candidates", a->opts.max_candidates, "Proposals refitted jointly, best screening score first; while they repeat a family at the same nodes, further distinct ones until this many distinct explanations are refitted (default 4)")
+      ->check(CLI::Range(1, 1000));
+  cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations of each start's effect-only stage (default 60)")
+      ->check(CLI::Range(1, 1000000));
+  cmd->add_option("--refine-iterations", a->opts.refine_iterations, "Iterations of each joint refit and of the base fit (default 300; one still descending at it goes on in chunks of 100 while a chunk gains > 0.1 %, up to 3x)")
+      ->check(CLI::Range(1, 1000000));
   cmd->add_option("--refit-step", a->opts.refit_step_s,
                   "Step [s] of the decimated fit recordings the candidate refits run on; the chosen one is polished at full rate (default 10)")
       ->check(CLI::PositiveNumber);
   cmd->add_option("--threads", a->opts.threads,
-                  "Independent refits run at once (default 0 = the machine's cores; the result does not depend on it)");
-  cmd->add_option("--trace-step", a->opts.trace_step_s, "Step of the unexplained-heat trace [s] (default max(60 s, 10 samples))");
+                  "Independent refits run at once (default 0 = the machine's cores; the result does not depend on it)")
+      ->check(CLI::Range(0, 1024));
+  cmd->add_option("--trace-step", a->opts.trace_step_s, "Step of the unexplained-heat trace [s] (default max(60 s, 10 samples))")
+      ->check(CLI::NonNegativeNumber);
   cmd->add_option("--report", a->report_dir, "Write residual_result.json, residual_table.txt and plots (PNG + SVG) here")
       ->transform([](std::string dir) {  // "dir/" printed "dir//file"
         while (dir.size() > 1 && dir.back() == '/') dir.pop_back();

@@ -231,11 +231,14 @@ void register_sim_commands(CLI::App& app) {
                   "wall seconds (0 = wait for ever)")
       ->capture_default_str();
   cmd->add_option("--seed", a->seed, "AD7794 noise seed")->capture_default_str();
-  cmd->add_option("--noise", a->noise, "AD7794 noise scale (1 = datasheet model, 0 = noiseless)")->capture_default_str();
+  cmd->add_option("--noise", a->noise, "AD7794 noise scale (1 = datasheet model, 0 = noiseless)")
+      ->capture_default_str()
+      ->check(CLI::Range(0.0, 1000.0));
   cmd->add_option("--ch5", a->ch5, "spare probe: surface (housing surface), shaft (on the stationary shaft end, reads the shaft node) or disabled (AIN5 open)")->capture_default_str();
   cmd->add_option("--ch5-fraction", a->ch5_fraction, "share of the housing rise seen by the surface probe")
       ->capture_default_str();
-  cmd->add_option("--start-steady", a->start_steady_rpm, "start in thermal steady state at this speed (rpm) instead of cold");
+  cmd->add_option("--start-steady", a->start_steady_rpm, "start in thermal steady state at this speed (rpm) instead of cold")
+      ->check(CLI::Range(0.0, 100000.0));
   cmd->add_flag("--json", a->json, "print run statistics as JSON on stdout at the end");
   cmd->callback([a] { run_sim(*a); });
 }

@@ -615,7 +615,8 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("--channels", a->channels, "Channel map override ch1..ch5: node names, 'ambient', 'none'");
     c->add_option("--stop-phases", a->stop_phases, "Ends of the early stop phases in s (default 600,2400; '0' = one stop pole)");
     c->add_flag("--no-carriers", a->no_carriers, "Every channel's model plain (no channel rides on a slower channel's model)");
-    c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the stop poles (default: the middle breakpoint)");
+    c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the stop poles (default: the middle breakpoint)")
+        ->check(CLI::NonNegativeNumber);
     c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
         ->check(CLI::ExistingFile);
     c->add_option("--margin", a->rule.margin, "Calibration: WARN = margin x worst evidence + floor (default 1.5)");

@@ -50,7 +50,15 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
     const uint32_t addr = (static_cast<uint32_t>(rec[1]) << 8) | rec[2];
     switch (rec[3]) {
       case 0x00:
-        for (size_t i = 0; i < len; ++i) img.bytes[base + addr + static_cast<uint32_t>(i)] = rec[4 + i];
+        for (size_t i = 0; i < len; ++i) {
+          // a second record over the same byte with other data: which one the programmer writes
+          // depends on the tool, so the image means two things
+          const uint32_t at = base + addr + static_cast<uint32_t>(i);
+          const auto [it, fresh] = img.bytes.emplace(at, rec[4 + i]);
+          if (!fresh && it->second != rec[4 + i])
+            fail(fmt::format("address 0x{:04X} written twice with different data (0x{:02X}, then 0x{:02X})", at, it->second,
+                             rec[4 + i]));
+        }
         if (img.bytes.size() > kMaxHexImageBytes)
           fail(fmt::format("more than {} bytes of data, the limit for a firmware image", kMaxHexImageBytes));
         break;

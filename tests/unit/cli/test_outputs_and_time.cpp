@@ -155,5 +155,29 @@ TEST(Inputs, AnImageThatIsNotAnAvrElfAndReadingsWithoutNoiseAreNamed) {
   EXPECT_TRUE(mentions(h, "flat.csv") && mentions(h, "noise level") && mentions(h, "--noise")) << h.err;
 }
 
+// Options whose value has no meaning were taken as given: heat --noise -1, residual --iterations -1
+// or --check-improvement 0 (a "better" that is worse), sim-module --start-steady 1e9 (which then
+// stopped at 81 million degC). The parser refuses them, naming the option, exit 2.
+TEST(Inputs, OptionValuesWithoutMeaningAreRefusedByName) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  const struct {
+    const char* args;
+    const char* option;
+  } cases[] = {
+      {"heat spindle4 rec.csv --noise -1", "--noise"},
+      {"residual --preset spindle4 --fit rec.csv --check rec.csv --iterations -1", "--iterations"},
+      {"residual --preset spindle4 --fit rec.csv --check rec.csv --check-improvement 0", "--check-improvement"},
+      {"residual --preset spindle4 --fit rec.csv --check rec.csv --max-candidates 0", "--max-candidates"},
+      {"sim-module --pty p --start-steady 1e9 --duration 1m", "--start-steady"},
+      {"sim-module --pty p --noise -1 --duration 1m", "--noise"},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = run_btsm(d, c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, c.option)) << c.args << "\n" << r.err;
+  }
+}
+
 }  // namespace
 }  // namespace btsm::test

@@ -221,6 +221,25 @@ TEST(LinkCli, FlashModelLinkLostAtTheCommitSaysHowToCheck) {
   EXPECT_EQ(m.module.model_seq(), 1u);
 }
 
+// An image with data in Optiboot's 512 bytes (or past the 32 KiB part) was patched and handed to
+// avrdude; it is refused naming the first such address, and nothing is written.
+TEST(LinkCli, FlashFirmwareRefusesDataAtOrAboveTheBootloader) {
+  test::TempDir home;
+  for (const uint32_t at : {0x7E00u, 0x8000u}) {
+    link::HexImage img;
+    for (uint32_t a = 0; a < 256; ++a) img.bytes[a] = static_cast<uint8_t>(a);
+    for (uint32_t a = 0; a < device_key::kRecordSize; ++a) img.bytes[device_key::kFlashAddress + a] = 0xFF;
+    img.bytes[at] = 0x12;
+    std::ofstream(home.path + "/fw.hex") << link::format_intel_hex(img);
+    const Result r = run(home, "flash-firmware --device-id 0000de71 --new-key --hex " + home.path + "/fw.hex --out " +
+                                   home.path + "/p.hex --dry-run --port /dev/ttyACM9");
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find(fmt::format("data at 0x{:04X}", at)), std::string::npos) << r.err;
+    EXPECT_NE(r.err.find("bootloader"), std::string::npos) << r.err;
+    EXPECT_FALSE(std::filesystem::exists(home.path + "/p.hex"));
+  }
+}
+
 TEST(LinkCli, FlashFirmwareDryRunPatchesTheKey) {
   test::TempDir home;
   link::HexImage img;

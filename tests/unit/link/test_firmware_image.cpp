@@ -38,6 +38,16 @@ TEST(IntelHex, RoundTripAndChecksums) {
   }
   EXPECT_THROW(parse_intel_hex(":0300300002337A1E\n", "noeof"), std::invalid_argument);
   EXPECT_THROW(parse_intel_hex("0300300002337A1E\n:00000001FF\n", "nocolon"), std::invalid_argument);
+  // Two records over one byte: the same value is a harmless repeat, another value makes the image
+  // mean two things and is refused at the second record's line.
+  EXPECT_EQ(parse_intel_hex(":0300300002337A1E\n:0100300002CD\n:00000001FF\n", "same").bytes.at(0x30), 0x02);
+  try {
+    parse_intel_hex(":0300300002337A1E\n:01003000557A\n:00000001FF\n", "clash.hex");
+    FAIL() << "a byte written twice with different data was accepted";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("clash.hex:2"), std::string::npos) << e.what();
+    EXPECT_NE(std::string(e.what()).find("0x0030 written twice"), std::string::npos) << e.what();
+  }
   // Above 64 KiB an extended linear address record appears.
   HexImage big;
   big.bytes[0x10005] = 0xAB;
