@@ -23,6 +23,8 @@ int main(int argc, char** argv) {
   btsm::cli::register_demo_commands(app);
   btsm::cli::register_suite_commands(app);
   btsm::cli::refuse_non_finite_numbers(app);  // after every registration: it walks them all
+  // "btsm <command>:" in front of every error, as the user typed the command
+  const auto command = [&app] { return app.get_subcommands().empty() ? std::string() : app.get_subcommands().front()->get_name(); };
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -30,21 +32,17 @@ int main(int argc, char** argv) {
     // of range, ...) are all "bad arguments": README promises 2. --help and --version are 0.
     return app.exit(e) == 0 ? btsm::cli::kExitOk : btsm::cli::kExitUsage;
   } catch (const btsm::cli::CommandError& e) {
-    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
-    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": " << e.what() << "\n";
+    std::cerr << "btsm " << command() << ": " << e.what() << "\n";
     return e.code;
   } catch (const btsm::io::InputError& e) {  // a reader's error no command translated: bad input
-    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
-    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": " << e.what() << "\n";
+    std::cerr << "btsm " << command() << ": " << e.what() << "\n";
     return btsm::cli::kExitUsage;
   } catch (const nlohmann::json::exception& e) {  // a JSON input of the wrong shape no reader named
-    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
-    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": a JSON input has the wrong shape: " << e.what()
+    std::cerr << "btsm " << command() << ": a JSON input has the wrong shape: " << e.what()
               << "\n";
     return btsm::cli::kExitUsage;
   } catch (const std::exception& e) {
-    const auto* sub = app.get_subcommands().empty() ? nullptr : app.get_subcommands().front();
-    std::cerr << "btsm " << (sub ? sub->get_name() : std::string()) << ": error: " << e.what() << "\n";
+    std::cerr << "btsm " << command() << ": error: " << e.what() << "\n";
     return btsm::cli::kExitFailure;
   }
   // Tables and --json go to stdout: a full disk or closed pipe there is a failed run, not exit 0.
