@@ -44,6 +44,9 @@ std::vector<int> parse_nodes(const th::Network& net, const std::string& list) {
     }
     out.push_back(i);
   }
+  // "--nodes ," names no node: the default (the network's source nodes) is asked for by leaving
+  // --nodes out, not by a list that says nothing.
+  if (out.empty() && !list.empty()) throw CommandError(kExitUsage, "--nodes '" + list + "': names no node");
   return out;
 }
 

@@ -130,8 +130,21 @@ void run_keys_list(bool as_json) {
   const KeyStore ks = KeyStore::from_environment();
   json j = json::array();
   for (uint32_t id : ks.list()) {
-    if (as_json) j.push_back({{"device_id", device_id_text(id)}, {"path", ks.path_for(id)}});
-    else std::cout << device_id_text(id) << "  " << ks.path_for(id) << "\n";
+    // A listed key is one flash-model can use: a file it would refuse (open to others, not a
+    // regular file, not 64 hex digits) is listed with the reason, not as a key.
+    std::string problem;
+    try {
+      (void)ks.load(id);
+    } catch (const std::exception& e) {
+      problem = e.what();
+    }
+    if (as_json) {
+      json e{{"device_id", device_id_text(id)}, {"path", ks.path_for(id)}, {"usable", problem.empty()}};
+      if (!problem.empty()) e["problem"] = problem;
+      j.push_back(e);
+    } else {
+      std::cout << device_id_text(id) << "  " << ks.path_for(id) << (problem.empty() ? "" : "  UNUSABLE: " + problem) << "\n";
+    }
   }
   if (as_json) print_json(j);
 }

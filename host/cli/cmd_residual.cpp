@@ -55,6 +55,16 @@ void run_residual(ResidualArgs& a) {
   std::vector<th::Recording> all = fit;
   all.insert(all.end(), check.begin(), check.end());
   try {
+    for (const auto& c : check)
+      for (const auto& f : fit)
+        if (th::same_samples(f, c))
+          throw CommandError(kExitUsage, c.source + ": the check recording holds the same samples as the fit recording " + f.source +
+                                             "; the check must be held out from the fit, or its error says nothing of an effect");
+    th::refuse_repeated_recordings(all);
+  } catch (const std::invalid_argument& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  try {
     if (a.use_values) {
       // a fitted model says itself which column measures which node; only --column changes that
       th::remap_measurements(model.network, a.columns);
@@ -77,6 +87,8 @@ void run_residual(ResidualArgs& a) {
       } catch (const std::invalid_argument& e) {
         throw CommandError(kExitUsage, std::string("--effects: ") + e.what());
       }
+    // an empty list would mean "every family", the opposite of what a list says
+    if (a.opts.effects.empty()) throw CommandError(kExitUsage, "--effects '" + a.effects + "': names no effect family");
   }
   a.opts.fit_base = !a.use_values;
   a.opts.progress = [](const std::string& s) { std::cerr << s << "\n"; };

@@ -78,6 +78,9 @@ void run_sim(const SimArgs& a) {
     o.duration_s = a.duration.empty() ? o.plant.speed.total_duration_s()
                                       : sim::parse_duration_s(a.duration, "--duration");
     if (!(o.duration_s > 0.0)) throw std::invalid_argument("--duration must be > 0");
+    if (!(o.duration_s <= sim::kMaxDurationS))  // a profile of many long segments
+      throw std::invalid_argument("the run would last " + fmt::format("{:.6g}", o.duration_s) + " s, more than the " +
+                                  fmt::format("{:.0f}", sim::kMaxDurationS) + " s (31 years) a simulated run may last; give --duration");
   } catch (const std::invalid_argument& e) {
     throw CommandError(kExitUsage, e.what());
   }

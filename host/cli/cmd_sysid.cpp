@@ -67,6 +67,7 @@ void run_fit(const FitArgs& a) {
   }
   const auto recs = read_all(a.recordings);
   try {
+    refuse_repeated_recordings(recs);
     const std::string said = map_measurements(net, recs, a.columns);
     if (!said.empty()) std::cerr << "fit: from the recordings' channel roles:" << said << "\n";
   } catch (const std::exception& e) {

@@ -36,11 +36,15 @@ struct Fd {
 }  // namespace
 
 std::string read_input_file(const std::string& path, std::size_t max_bytes, const std::string& what, FileKind kind) {
-  const Fd f{::open(path.c_str(), O_RDONLY | O_CLOEXEC)};
+  // O_NONBLOCK: opening a named pipe no program writes to would wait for a writer for ever; so
+  // opened, the pipe reads as empty at once. Reads block again once the file is open.
+  const Fd f{::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK)};
   if (f.fd < 0) throw InputError(path + ": cannot open " + what + ": " + std::strerror(errno));
   struct stat st {};
   if (::fstat(f.fd, &st) != 0) throw InputError(path + ": cannot stat " + what + ": " + std::strerror(errno));
   if (S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, not a " + what);
+  if (const int flags = ::fcntl(f.fd, F_GETFL); flags < 0 || ::fcntl(f.fd, F_SETFL, flags & ~O_NONBLOCK) < 0)
+    throw InputError(path + ": cannot read " + what + ": " + std::strerror(errno));
   if (S_ISREG(st.st_mode) && static_cast<unsigned long long>(st.st_size) > max_bytes) too_large(path, max_bytes, what);
   std::string out;
   char buf[64 * 1024];
@@ -50,7 +54,10 @@ std::string read_input_file(const std::string& path, std::size_t max_bytes, cons
       if (errno == EINTR) continue;
       throw InputError(path + ": cannot read " + what + ": " + std::strerror(errno));
     }
-    if (n == 0) break;
+    if (n == 0) {
+      if (out.empty() && S_ISFIFO(st.st_mode)) throw InputError(path + ": a named pipe with no program writing to it, not a " + what);
+      break;
+    }
     const auto got = static_cast<std::size_t>(n);
     if (kind == FileKind::Text) {
       if (const void* nul = std::memchr(buf, '\0', got))

@@ -10,6 +10,7 @@
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
 
+#include <cmath>
 #include <filesystem>
 
 namespace btsm::link {
@@ -22,6 +23,53 @@ bool looks_like_json(std::string_view content, const std::string& path) {
   if (std::filesystem::path(path).extension() == ".json") return true;
   const auto first = content.find_first_not_of(" \t\r\n");
   return first != std::string_view::npos && content[first] == '{';
+}
+
+// Where a reduced-model JSON's "blob_hex" and its "scheduled_model" disagree ("" when they agree
+// or the blob does not decode: check_model_blob() then names that). `btsm reduce` writes both from
+// one model; an edit to either is caught here instead of flashing something the table above it
+// does not describe. Compared: what a user reads and might edit -- sample period, channel mask, the
+// ambient channel, the breakpoint speeds and the poles (to their Q1.30 resolution).
+std::string blob_contradicts_schedule(const std::vector<uint8_t>& blob, const nlohmann::json& sm) {
+  ReducedModel m;
+  if (!decode(blob.data(), blob.size(), m).ok()) return {};
+  if (!sm.is_object()) return "\"scheduled_model\" is not an object";
+  const ModelSchedule& s = m.schedule;
+  auto number = [&](const nlohmann::json& j, const char* key, double& v) {
+    if (!j.is_object() || !j.contains(key) || !j[key].is_number()) return false;
+    v = j[key].get<double>();
+    return true;
+  };
+  double v = 0;
+  if (number(sm, "dt_ms", v) && v != s.dt_ms) return fmt::format("dt_ms {} in the blob, {} in scheduled_model", s.dt_ms, v);
+  if (number(sm, "enabled_mask", v) && v != s.enabled_mask)
+    return fmt::format("enabled_mask {} in the blob, {} in scheduled_model", s.enabled_mask, v);
+  if (sm.contains("ambient_channel")) {
+    const nlohmann::json& a = sm["ambient_channel"];
+    const int blob_ch = s.ambient_channel == kModelAmbientNone ? 0 : s.ambient_channel + 1;
+    const int json_ch = a.is_number_integer() ? a.get<int>() : 0;
+    if ((a.is_null() || a.is_number_integer()) && blob_ch != json_ch)
+      return fmt::format("ambient channel {} in the blob, {} in scheduled_model", blob_ch ? std::to_string(blob_ch) : "none",
+                         json_ch ? std::to_string(json_ch) : "none");
+  }
+  if (!sm.contains("breakpoints") || !sm["breakpoints"].is_array()) return {};
+  const nlohmann::json& bps = sm["breakpoints"];
+  if (bps.size() != s.n_breakpoints)
+    return fmt::format("{} breakpoints in the blob, {} in scheduled_model", s.n_breakpoints, bps.size());
+  for (uint8_t i = 0; i < s.n_breakpoints; ++i) {
+    if (number(bps[i], "speed_rpm", v) && v != s.speed_rpm[i])
+      return fmt::format("breakpoint {}: {} rpm in the blob, {} in scheduled_model", i, s.speed_rpm[i], v);
+    if (!bps[i].is_object() || !bps[i].contains("a") || !bps[i]["a"].is_array() || bps[i]["a"].size() != kModelChannels) continue;
+    for (uint8_t j = 0; j < kModelChannels; ++j) {
+      const nlohmann::json& aj = bps[i]["a"][j];
+      if (!aj.is_number() || !model_predicts(s.enabled_mask, s.ambient_channel, j)) continue;
+      const double blob_a = std::ldexp(static_cast<double>(m.bp[i].ch[j].a_q30), -kPoleFracBits);
+      if (std::abs(blob_a - aj.get<double>()) > 1e-6)
+        return fmt::format("breakpoint {} channel {}: pole {:.9f} in the blob, {:.9f} in scheduled_model", i, j + 1, blob_a,
+                           aj.get<double>());
+    }
+  }
+  return {};
 }
 
 }  // namespace
@@ -37,8 +85,14 @@ std::vector<uint8_t> model_blob_from_content(std::string_view content, const std
       if (j.contains(obj) && j[obj].is_object()) node = &j[obj];
   if (node->is_object()) {
     for (const char* key : {"blob_hex", "hex", "blob"})
-      if (node->contains(key) && (*node)[key].is_string())
-        return io::hex_to_bytes((*node)[key].get_ref<const std::string&>(), path + ": \"" + key + "\"");
+      if (node->contains(key) && (*node)[key].is_string()) {
+        auto blob = io::hex_to_bytes((*node)[key].get_ref<const std::string&>(), path + ": \"" + key + "\"");
+        if (j.is_object() && j.contains("scheduled_model"))
+          if (const std::string why = blob_contradicts_schedule(blob, j["scheduled_model"]); !why.empty())
+            throw io::InputError(path + ": \"" + key + "\" contradicts \"scheduled_model\" (" + why +
+                                 "): the file was edited after `btsm reduce` wrote it; reduce again, or flash a blob file");
+        return blob;
+      }
     for (const char* key : {"blob_file", "blob_path", "file", "path"}) {
       if (node->contains(key) && (*node)[key].is_string()) {
         std::filesystem::path p = (*node)[key].get<std::string>();

@@ -137,6 +137,7 @@ class ResidualLoop {
       bx0_ = L_.base_fit.initial_states;
       base_free_ = L_.base_fit.free_parameter_count;
       base_from_restart_ = !L_.base_fit.final_start.empty() && L_.base_fit.final_start != "staged";
+      bool kept_start = false;
       // The staged pipeline restarts from the data; on a model that lacks an effect it can land in
       // a worse minimum than the start it was given. Keep the better one.
       if (start_.size() == base_.param_count() && start_.allFinite()) {
@@ -154,10 +155,17 @@ class ResidualLoop {
           bp_ = start_;
           bx0_ = x0_start;
           base_from_restart_ = false;
+          kept_start = true;
           L_.base_fit.params = bp_;
           L_.base_fit.initial_states = bx0_;
         }
       }
+      // A base that is no model (every source ~0 W, a diverging fit) leaves nothing to compare an
+      // effect with: any candidate would "explain" the whole signal. `btsm fit` refuses the same data.
+      if (!L_.base_fit.unusable.empty() && !kept_start)
+        throw std::runtime_error("residual: the base fit gave no usable model (" + L_.base_fit.unusable +
+                                 "), so no effect can be traced against it; check the fit recordings (speeds, columns) "
+                                 "or give a fitted model with --use-values");
       for (int i = 0; i < base_.param_count(); ++i)
         if (!base_.params[static_cast<std::size_t>(i)].fixed &&
             std::find(held_.begin(), held_.end(), i) == held_.end())

@@ -3,9 +3,9 @@
 
 #include "common/wire_messages.hpp"
 #include "declared_columns.hpp"
+#include "recording_metadata.hpp"
 
 #include <map>
-#include <sstream>
 #include <stdexcept>
 
 namespace btsm::thermal {
@@ -36,15 +36,9 @@ std::map<std::string, std::string> columns_from_roles(const Network& net, const 
   for (const auto& spec : explicit_specs) explicit_nodes[spec.substr(0, spec.find('='))] = spec;
   std::map<std::string, std::pair<std::string, std::string>> chosen;  // node -> (column, recording)
   for (const auto& rec : recs) {
-    const std::string meta = rec.meta_value("channel_roles");
-    if (meta.empty() || meta.find('(') != std::string::npos) continue;  // absent, or defaults
     std::map<std::string, std::string> column_of_role;
-    std::stringstream ss(meta);
-    std::string pair;
-    while (std::getline(ss, pair, ',')) {
-      const auto eq = pair.find('=');
-      if (eq != std::string::npos) column_of_role[pair.substr(eq + 1)] = pair.substr(0, eq);
-    }
+    for (const auto& [column, role] : channel_roles(rec)) column_of_role[role] = column;  // checked: one column per role
+    if (column_of_role.empty()) continue;  // absent, or defaults
     for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r) {
       const std::string role = wire::channel_role_name(r);
       if (!wire::is_thermal_role(r) || net.node_index(role) < 0 || explicit_nodes.count(role)) continue;
@@ -80,6 +74,16 @@ std::string map_measurements(Network& net, const std::vector<Recording>& recs, c
     if (!column.empty()) specs.push_back(node + "=" + column);
   specs.insert(specs.end(), columns.begin(), columns.end());
   remap_measurements(net, specs);
+  // The module's ambient channel is the boundary (`btsm record` writes it as ambient_c, never as a
+  // column of its own); a node measured by such a column would be fitted to the room.
+  for (const auto& rec : recs) {
+    const std::string ambient = ambient_channel(rec);
+    for (const auto& m : net.measurements)
+      if (!ambient.empty() && m.column == ambient && rec.channel_index(ambient) >= 0)
+        throw std::invalid_argument(rec.source + ": column '" + ambient + "' measures node '" +
+                                    net.nodes[static_cast<std::size_t>(m.node)].name +
+                                    "' but the metadata names it the ambient channel; say which with --column NODE=COLUMN");
+  }
   return said;
 }
 

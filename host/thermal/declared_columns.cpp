@@ -1,6 +1,8 @@
 // Declared boundary and event columns of a recording (see declared_columns.hpp).
 #include "host/thermal/declared_columns.hpp"
 
+#include "host/io/input_error.hpp"
+
 #include <cmath>
 #include <stdexcept>
 
@@ -67,6 +69,30 @@ bool is_declared_column(const Recording& rec, const std::string& column) {
   return false;
 }
 
+void check_declared_columns(const Recording& rec) {
+  const std::vector<std::string> b = boundary_columns(rec), e = event_columns(rec);
+  for (const auto& c : b) {
+    for (const auto& x : e)
+      if (x == c) throw io::InputError(rec.source + ": column '" + c + "' is declared both as a boundary and as an event");
+    const int j = rec.channel_index(c);
+    if (j < 0) throw io::InputError(rec.source + ": declared boundary column '" + c + "' is not in the header");
+    for (Eigen::Index k = 0; k < rec.temp_c.rows(); ++k)
+      if (!std::isfinite(rec.temp_c(k, j)))
+        throw io::InputError(rec.source + ": boundary column '" + c + "' is empty at " + row_where(rec, k) +
+                                    " (a boundary temperature is needed on every row)");
+  }
+  for (const auto& c : e) {
+    const int j = rec.channel_index(c);
+    if (j < 0) throw io::InputError(rec.source + ": declared event column '" + c + "' is not in the header");
+    for (Eigen::Index k = 0; k < rec.temp_c.rows(); ++k) {
+      const double v = rec.temp_c(k, j);
+      if (v != 0.0 && v != 1.0)
+        throw io::InputError(rec.source + ": event column '" + c + "' must be 0 or 1, found " +
+                                    (std::isfinite(v) ? std::to_string(v) : std::string("an empty cell")) + " at " + row_where(rec, k));
+    }
+  }
+}
+
 void declare_columns(Recording& rec, const std::vector<std::string>& boundaries, const std::vector<std::string>& events) {
   std::vector<std::string> b = boundary_columns(rec), e = event_columns(rec);
   auto add = [](std::vector<std::string>& v, const std::string& c) {
@@ -78,28 +104,11 @@ void declare_columns(Recording& rec, const std::vector<std::string>& boundaries,
     for (const auto& x : split_list(c)) add(b, x);
   for (const auto& c : events)
     for (const auto& x : split_list(c)) add(e, x);
-  for (const auto& c : b) {
-    for (const auto& x : e)
-      if (x == c) throw std::invalid_argument(rec.source + ": column '" + c + "' is declared both as a boundary and as an event");
-    const int j = rec.channel_index(c);
-    if (j < 0) throw std::invalid_argument(rec.source + ": declared boundary column '" + c + "' is not in the header");
-    for (Eigen::Index k = 0; k < rec.temp_c.rows(); ++k)
-      if (!std::isfinite(rec.temp_c(k, j)))
-        throw std::invalid_argument(rec.source + ": boundary column '" + c + "' is empty at " + row_where(rec, k) +
-                                    " (a boundary temperature is needed on every row)");
-  }
-  for (const auto& c : e) {
-    const int j = rec.channel_index(c);
-    if (j < 0) throw std::invalid_argument(rec.source + ": declared event column '" + c + "' is not in the header");
-    for (Eigen::Index k = 0; k < rec.temp_c.rows(); ++k) {
-      const double v = rec.temp_c(k, j);
-      if (v != 0.0 && v != 1.0)
-        throw std::invalid_argument(rec.source + ": event column '" + c + "' must be 0 or 1, found " +
-                                    (std::isfinite(v) ? std::to_string(v) : std::string("an empty cell")) + " at " + row_where(rec, k));
-    }
-  }
-  set_declared(rec, kBoundaryColumnsKey, b);
-  set_declared(rec, kEventColumnsKey, e);
+  Recording declared = rec;  // checked before it replaces anything
+  set_declared(declared, kBoundaryColumnsKey, b);
+  set_declared(declared, kEventColumnsKey, e);
+  check_declared_columns(declared);
+  rec.meta = std::move(declared.meta);
 }
 
 void check_measurements_not_declared(const Network& net, const Recording& rec) {

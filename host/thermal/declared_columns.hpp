@@ -26,9 +26,14 @@ std::vector<std::string> event_columns(const Recording& rec);
 // True when `column` is declared as a boundary or an event.
 bool is_declared_column(const Recording& rec, const std::string& column);
 
-// Adds the command-line declarations to the metadata and checks every declaration: the column is in
-// the header, not declared as both kinds, boundary cells are all present, event cells are 0 or 1.
-// Throws std::invalid_argument naming the file, the column and (for a bad cell) its time and row.
+// Checks the declarations in the metadata: each column is in the header, not declared as both
+// kinds, boundary cells are all present, event cells are 0 or 1. Throws io::InputError
+// naming the file, the column and (for a bad cell) its time and row. Every recording read is
+// checked (read_recording_csv), so no command uses a declaration residual would refuse.
+void check_declared_columns(const Recording& rec);
+
+// Adds the command-line declarations to the metadata and checks every declaration as
+// check_declared_columns() does; `rec` is unchanged when that throws.
 void declare_columns(Recording& rec, const std::vector<std::string>& boundaries, const std::vector<std::string>& events);
 
 // Throws std::invalid_argument when the network measures a column the recording declares as a

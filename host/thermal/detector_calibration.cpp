@@ -134,6 +134,19 @@ DetectorCalibration calibrate_detector(const ScheduledReduction& red, const std:
   if (!(rule.margin >= 1.0) || !(rule.alarm_factor > 1.0) || !(rule.drift_floor_K > 0) || !(rule.evidence_floor_K_min > 0))
     throw std::invalid_argument("detector calibration: need margin >= 1, alarm factor > 1, drift step > 0, evidence floor > 0");
   if (!red.quantize_status.ok()) throw std::invalid_argument("detector calibration: the reduction did not quantize");
+  {
+    // The bands are the worst the model misses a healthy spindle by; learnt from a few samples they
+    // are the noise of a moment, and the module false-alarms at its first warm-up.
+    double running_s = 0;
+    for (const Recording* rec : recordings)
+      for (std::size_t k = 0; k + 1 < rec->rows(); ++k)
+        if (rec->speed_rpm[k] > 0) running_s += rec->time_s[k + 1] - rec->time_s[k];
+    if (running_s < kMinCalibrationRunningS)
+      throw std::invalid_argument(fmt::format(
+          "detector calibration: the recordings hold {:.3g} min of running (speed > 0), less than the {:.0f} min the bands are "
+          "learnt from; calibrate on recordings of normal running, e.g. the warm-ups the model was fitted on",
+          running_s / 60.0, kMinCalibrationRunningS / 60.0));
+  }
   const ReducedModel& q = red.quantized;
   const uint16_t dt_ms = q.schedule.dt_ms;
   DetectorCalibration out;

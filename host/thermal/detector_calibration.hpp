@@ -72,9 +72,13 @@ std::pair<double, double> worst_evidence(const std::vector<std::vector<double>>&
 // with drift `drift_K`; < 0 when it does not within the series.
 double minutes_to_evidence(const std::vector<double>& rise, double drift_K, double threshold_K_min, uint16_t dt_ms);
 
+// Running time (s, speed > 0) the calibration recordings must hold together: a warm-up lasts hours.
+inline constexpr double kMinCalibrationRunningS = 3600.0;
+
 // The rule above for the reduction `red` (its quantized model, detector limits to keep, duty cycle
 // and design fault). Throws std::invalid_argument naming the recording and column when a mapped
-// column is missing, or for a rule out of range.
+// column is missing, for a rule out of range, or for recordings with less than
+// kMinCalibrationRunningS of running.
 DetectorCalibration calibrate_detector(const ScheduledReduction& red, const std::vector<const Recording*>& recordings,
                                        const std::array<std::string, kModelChannels>& columns, const DetectorRule& rule);
 

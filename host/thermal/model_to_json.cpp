@@ -1,9 +1,9 @@
 // Fitted-model JSON writer (the reader and its checks are model_file.cpp, which needs nothing
 // of the fit).
 #include "model_file.hpp"
+#include "recording_metadata.hpp"
 
 #include <map>
-#include <sstream>
 
 namespace btsm::thermal {
 
@@ -11,14 +11,9 @@ nlohmann::json channel_map_json(const Network& net, const std::vector<Recording>
   std::map<std::string, std::string> role_of_column;  // from the first recording that read the module's roles
   std::string ambient_column;
   for (const auto& rec : recs) {
-    const std::string meta = rec.meta_value("channel_roles");
-    if (role_of_column.empty() && !meta.empty() && meta.find('(') == std::string::npos) {
-      std::stringstream ss(meta);
-      std::string pair;
-      while (std::getline(ss, pair, ','))
-        if (const auto eq = pair.find('='); eq != std::string::npos) role_of_column[pair.substr(0, eq)] = pair.substr(eq + 1);
-    }
-    if (ambient_column.empty()) ambient_column = rec.meta_value("ambient_channel");
+    if (role_of_column.empty())
+      for (const auto& [column, role] : channel_roles(rec)) role_of_column[column] = role;
+    if (ambient_column.empty()) ambient_column = ambient_channel(rec);
   }
   nlohmann::json map = nlohmann::json::array();
   for (int ch = 1; ch <= 5; ++ch) {

@@ -185,8 +185,31 @@ std::vector<std::string> Network::param_names() const {
   return v;
 }
 
+namespace {
+// A name with a control character (an ESC, a newline) would be printed raw into the terminal and
+// into every table and file that names it; it is shown JSON-escaped in the error instead.
+bool has_control_char(const std::string& s) {
+  for (const char c : s)
+    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) return true;
+  return false;
+}
+}  // namespace
+
 void Network::validate() const {
+  if (has_control_char(name)) bad("network " + json(name).dump(), "name", "contains a control character");
   const std::string src = "network '" + name + "'";
+  {
+    std::vector<std::pair<std::string, std::string>> names;  // (what, name)
+    for (const auto& p : params) names.emplace_back("parameter", p.name);
+    for (const auto& n : nodes) names.emplace_back("node", n.name);
+    for (const auto& l : links) names.emplace_back("link", l.name);
+    for (const auto& s : sources) names.emplace_back("source", s.name);
+    for (const auto& m : measurements) names.emplace_back("measurement column", m.column);
+    for (const auto& b : boundaries) names.emplace_back("boundary column", b);
+    for (const auto& e : events) names.emplace_back("event column", e);
+    for (const auto& [what, n] : names)
+      if (has_control_char(n)) bad(src, what + " " + json(n).dump(), "contains a control character");
+  }
   if (nodes.empty()) bad(src, "nodes", "at least one node is required");
   if (!(speed_ref_rpm > 0)) bad(src, "speed_ref_rpm", "must be > 0");
   if (!(operating_above_rpm >= 0)) bad(src, "operating_above_rpm", "must be >= 0");
@@ -266,6 +289,12 @@ void Network::validate() const {
     for (const auto& e : events)
       if (m.column == e) bad(src, "measurement '" + m.column + "'", "a declared event column is not a node's measurement");
   }
+  for (std::size_t i = 0; i < measurements.size(); ++i)  // nodes checked above
+    for (std::size_t k = 0; k < i; ++k)
+      if (measurements[k].column == measurements[i].column)
+        bad(src, "measurement '" + measurements[i].column + "'",
+            "one column cannot measure two nodes ('" + nodes[static_cast<std::size_t>(measurements[k].node)].name + "' and '" +
+                nodes[static_cast<std::size_t>(measurements[i].node)].name + "')");
 }
 
 Network network_from_json(const json& j, const std::string& src) {

@@ -1,6 +1,7 @@
 // Recording CSV reader/writer. Errors name file, line and column because recordings are edited by
 // hand and produced by several tools.
 #include "recording.hpp"
+#include "recording_metadata.hpp"
 
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
@@ -146,6 +147,9 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
       std::unordered_set<std::string> seen;  // a set, not pairwise compares: a header may be huge
       for (std::size_t c = 3; c < cells.size(); ++c) {
         if (cells[c].empty()) fail(source, line_no, c + 1, "header: empty column name");
+        for (const char ch : cells[c])
+          if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f)  // an ESC would be printed raw into every table
+            fail(source, line_no, c + 1, "header: column " + std::to_string(c + 1) + "'s name contains a control character");
         if (!seen.insert(cells[c]).second) fail(source, line_no, c + 1, "header: duplicate column '" + shown(cells[c]) + "'");
         rec.channels.push_back(cells[c]);
       }
@@ -191,11 +195,31 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
   for (std::size_t r = 0; r < temps.size(); ++r)
     for (std::size_t c = 0; c < rec.channels.size(); ++c)
       rec.temp_c(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = temps[r][c];
+  check_recording_metadata(rec);  // declared columns, channel roles: every command sees the same errors
   return rec;
 }
 
 Recording read_recording_csv(const std::string& path) {
   return parse_recording_csv(io::read_input_file(path, kMaxRecordingBytes, "recording CSV"), path);
+}
+
+bool same_samples(const Recording& a, const Recording& b) {
+  if (a.rows() != b.rows() || a.channels != b.channels) return false;
+  if (a.time_s != b.time_s || a.speed_rpm != b.speed_rpm || a.ambient_c != b.ambient_c) return false;
+  for (Eigen::Index k = 0; k < a.temp_c.size(); ++k) {
+    const double x = a.temp_c.data()[k], y = b.temp_c.data()[k];
+    if (!(x == y || (std::isnan(x) && std::isnan(y)))) return false;
+  }
+  return true;
+}
+
+void refuse_repeated_recordings(const std::vector<Recording>& recs) {
+  for (std::size_t i = 0; i < recs.size(); ++i)
+    for (std::size_t j = i + 1; j < recs.size(); ++j)
+      if (same_samples(recs[i], recs[j]))
+        throw std::invalid_argument(recs[j].source + ": holds the same samples as " + recs[i].source +
+                                    "; a recording given twice counts twice (its weight doubled, the parameter "
+                                    "uncertainties understated): give each recording once");
 }
 
 void write_recording_csv(const std::string& path, const Recording& rec, int temp_decimals) {

@@ -56,6 +56,14 @@ Recording read_recording_csv(const std::string& path);
 // Same, from text already in memory (`source` names it in errors).
 Recording parse_recording_csv(const std::string& text, const std::string& source);
 
+// True when both hold the same samples (time, speed, ambient, columns and every temperature, an
+// empty cell equal to an empty cell), whatever their file names and metadata.
+bool same_samples(const Recording& a, const Recording& b);
+// Throws std::invalid_argument naming both files when two of `recs` hold the same samples: a
+// recording given twice is fitted with double weight, which halves no error but does halve the
+// parameter uncertainties the fit reports.
+void refuse_repeated_recordings(const std::vector<Recording>& recs);
+
 // Writes metadata, header and rows (temperatures with 4 decimals, NaN as an empty cell).
 void write_recording_csv(const std::string& path, const Recording& rec, int temp_decimals = 4);
 

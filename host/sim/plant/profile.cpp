@@ -84,6 +84,9 @@ double parse_duration_s(const std::string& text, const std::string& what) {
   }
   const double v = parse_number(t, what) * scale;
   if (v < 0.0) throw std::invalid_argument(what + ": '" + text + "' is negative");
+  if (!(v <= kMaxDurationS))
+    throw std::invalid_argument(what + ": '" + text + "' is longer than the " + std::to_string(static_cast<long long>(kMaxDurationS)) +
+                                " s (31 years) a simulated run or a recording may last");
   return v;
 }
 
@@ -124,6 +127,9 @@ void SpeedProfile::append(const SpeedSegment& seg) {
   if (!(seg.duration_s > 0.0) || !(seg.rpm >= 0.0) || !std::isfinite(seg.duration_s) ||
       !std::isfinite(seg.rpm))
     throw std::invalid_argument("speed segment: duration must be > 0 s and speed >= 0 rpm");
+  if (seg.duration_s > kMaxDurationS)
+    throw std::invalid_argument("speed segment: longer than the " + std::to_string(static_cast<long long>(kMaxDurationS)) +
+                                " s (31 years) a simulated run may last");
   segments_.push_back(seg);
 }
 

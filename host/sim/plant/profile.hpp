@@ -22,7 +22,11 @@ struct SpeedSegment {
   double rpm = 0.0;         // rpm, >= 0
 };
 
-// Parses "90", "90s", "15m", "15min", "1.5h" into seconds. `what` names the item in errors.
+// Longest duration accepted, the time a recording may hold (thermal/recording.hpp kMaxRecordedTimeS):
+// beyond it the run never ends and its time stamps lose their seconds.
+inline constexpr double kMaxDurationS = 1.0e9;
+// Parses "90", "90s", "15m", "15min", "1.5h" into seconds (at most kMaxDurationS). `what` names
+// the item in errors.
 double parse_duration_s(const std::string& text, const std::string& what);
 
 // A speed profile file holds a few hundred segments at most; 1 MiB is far beyond any real one.

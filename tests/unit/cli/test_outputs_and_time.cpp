@@ -118,7 +118,8 @@ TEST(Models, APredictionThatDivergesIsAnErrorNotAScore) {
   const CliResult v = run_btsm(d, "validate model.json rec.csv --initial-rows 20 --json");
   EXPECT_EQ(v.code, 2) << v.out << v.err;
   EXPECT_TRUE(mentions(v, "rec.csv") && mentions(v, "diverges") && mentions(v, "6000 rpm")) << v.err;
-  const CliResult r = run_btsm(d, "residual --fit rec.csv --check rec.csv --network model.json --use-values --threads 1");
+  write_text(d.file("check.csv"), recording_csv(300));
+  const CliResult r = run_btsm(d, "residual --fit rec.csv --check check.csv --network model.json --use-values --threads 1");
   EXPECT_EQ(r.code, 2) << r.err;
   EXPECT_TRUE(mentions(r, "diverges")) << r.err;
   // heat replaces the model's friction sources by unknowns; a temperature-driven one it keeps

@@ -150,6 +150,11 @@ TEST(LinkCli, KeysAndFlashModel) {
   r = run(home, "flash-model --port " + m.pty.path + " " + home.path + "/model.bin");
   EXPECT_NE(r.code, 0);
   EXPECT_NE(r.err.find("chmod 600"), std::string::npos) << r.err;
+  // ... and `keys list` says so instead of listing it as a key.
+  r = run(home, "keys list");
+  EXPECT_NE(r.out.find("0000de70"), std::string::npos) << r.out;
+  EXPECT_NE(r.out.find("UNUSABLE"), std::string::npos) << r.out;
+  EXPECT_FALSE(nlohmann::json::parse(run(home, "keys list --json").out)[0]["usable"].get<bool>());
 }
 
 std::string dev_key_hex() {

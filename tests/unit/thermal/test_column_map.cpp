@@ -142,4 +142,31 @@ TEST(ColumnMap, RecordingsThatDisagreeAreRefusedNamingBoth) {
   EXPECT_NO_THROW(th::map_measurements(net, {a, b}, {"shaft=T5"}));  // told explicitly: fine
 }
 
+// What a reader refuses in the metadata, before any command maps a probe: the entry is named.
+TEST(ColumnMap, ContradictoryRoleMetadataIsRefusedWhenRead) {
+  auto read = [](const std::string& meta) {
+    return th::parse_recording_csv(meta + "time_s,speed_rpm,ambient_c,T1,T2,T3,T5\n0,6000,20,21,22,23,24\n", "m.csv");
+  };
+  auto message = [&](const std::string& meta) {
+    try {
+      read(meta);
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("(no error)");
+  };
+  EXPECT_NE(message("# channel_roles: T1=rear_bearing,T2=housing,T3=housing,T4=ambient\n").find("'housing' is on two channels, T2 and T3"),
+            std::string::npos);
+  EXPECT_NE(message("# channel_roles: T1=ambient,T4=ambient\n").find("'ambient' is on two channels"), std::string::npos);
+  EXPECT_NE(message("# channel_roles: T1\n").find("not COLUMN=ROLE"), std::string::npos);
+  EXPECT_NE(message("# channel_roles: T1=bearing\n").find("unknown role 'bearing'"), std::string::npos);
+  EXPECT_NE(message("# ambient_channel: ambient\n").find("not a module channel"), std::string::npos);
+  EXPECT_NE(message("# channel_roles: T1=rear_bearing,T4=ambient\n# ambient_channel: T5\n").find("where T4 is the ambient"),
+            std::string::npos);
+  // Spare, disabled and unknown channels may repeat; defaults are not read as roles at all.
+  EXPECT_NO_THROW(read("# channel_roles: T1=rear_bearing,T2=spare,T3=spare,T4=ambient,T5=disabled\n# ambient_channel: T4\n"));
+  EXPECT_NO_THROW(read("# channel_roles: T1=unknown,T2=unknown,T4=ambient\n"));
+  EXPECT_NO_THROW(read("# channel_roles: T1=housing,T2=housing (firmware defaults, not read from the module)\n"));
+}
+
 }  // namespace

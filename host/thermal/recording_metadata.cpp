@@ -1,0 +1,83 @@
+// Checks of a recording's channel_roles / ambient_channel metadata (see recording_metadata.hpp).
+#include "recording_metadata.hpp"
+
+#include "common/wire_messages.hpp"
+#include "declared_columns.hpp"
+#include "host/io/input_error.hpp"
+
+#include <sstream>
+#include <stdexcept>
+
+namespace btsm::thermal {
+namespace {
+
+std::string trimmed(const std::string& s) {
+  const auto a = s.find_first_not_of(" \t");
+  if (a == std::string::npos) return {};
+  return s.substr(a, s.find_last_not_of(" \t") - a + 1);
+}
+
+[[noreturn]] void bad(const Recording& rec, const std::string& key, const std::string& what) {
+  throw io::InputError(rec.source + ": metadata '# " + key + "': " + what);
+}
+
+// Role byte of a name, -1 for the "unknown" that `btsm record` writes for a role byte it does not know.
+int role_of_name(const std::string& name) {
+  for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r)
+    if (name == wire::channel_role_name(r)) return r;
+  return -1;
+}
+
+}  // namespace
+
+std::vector<std::pair<std::string, std::string>> channel_roles(const Recording& rec) {
+  static const char* kKey = "channel_roles";
+  std::vector<std::pair<std::string, std::string>> out;
+  const std::string line = rec.meta_value(kKey);
+  if (line.empty() || line.find('(') != std::string::npos) return out;  // absent, or firmware defaults
+  std::stringstream ss(line);
+  std::string item;
+  while (std::getline(ss, item, ',')) {
+    item = trimmed(item);
+    const auto eq = item.find('=');
+    if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
+      bad(rec, kKey, "entry '" + item + "' is not COLUMN=ROLE (e.g. T1=rear_bearing)");
+    const std::string column = trimmed(item.substr(0, eq)), role = trimmed(item.substr(eq + 1));
+    const int r = role_of_name(role);
+    if (r < 0 && role != "unknown") {
+      std::string known;
+      for (uint8_t k = 0; k < wire::kChannelRoleCount; ++k) known += std::string(k ? ", " : "") + wire::channel_role_name(k);
+      bad(rec, kKey, "unknown role '" + role + "' for " + column + " (known: " + known + ")");
+    }
+    for (const auto& [c, other] : out) {
+      if (c == column) bad(rec, kKey, "channel " + column + " is listed twice (" + other + ", " + role + ")");
+      // One probe per measured point: two channels with one role leave the fit to pick one of
+      // them silently and leave another point unmeasured.
+      const bool unique = r >= 0 && (wire::is_thermal_role(static_cast<uint8_t>(r)) || r == static_cast<int>(wire::ChannelRole::Ambient));
+      if (unique && other == role) bad(rec, kKey, "role '" + role + "' is on two channels, " + c + " and " + column);
+    }
+    out.emplace_back(column, role);
+  }
+  return out;
+}
+
+std::string ambient_channel(const Recording& rec) {
+  static const char* kKey = "ambient_channel";
+  const std::string ch = trimmed(rec.meta_value(kKey));
+  if (ch.empty()) return ch;
+  if (!(ch.size() == 2 && ch[0] == 'T' && ch[1] >= '1' && ch[1] <= '5'))
+    bad(rec, kKey, "'" + ch + "' is not a module channel (T1..T5)");
+  for (const auto& [column, role] : channel_roles(rec)) {
+    if (column == ch && role != "ambient") bad(rec, kKey, ch + " has the role '" + role + "' in channel_roles, not ambient");
+    if (column != ch && role == "ambient") bad(rec, kKey, ch + " contradicts channel_roles, where " + column + " is the ambient");
+  }
+  return ch;
+}
+
+void check_recording_metadata(const Recording& rec) {
+  check_declared_columns(rec);
+  (void)channel_roles(rec);
+  (void)ambient_channel(rec);
+}
+
+}  // namespace btsm::thermal

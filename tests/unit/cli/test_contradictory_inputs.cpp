@@ -1,0 +1,196 @@
+// Inputs that contradict themselves or each other, which the commands took silently with exit 0:
+// the P3 rows of the hostile-input probe of 26 Nov. Each is now refused, naming the file and the
+// entries that disagree, before any work; the honest variant beside it still passes.
+#include "cli_run.hpp"
+#include "model_fixture.hpp"
+
+#include <gtest/gtest.h>
+
+#include <sys/stat.h>
+
+#include <string>
+
+namespace btsm::test {
+namespace {
+
+bool mentions(const CliResult& r, const std::string& s) { return r.err.find(s) != std::string::npos; }
+
+// recording_csv with metadata lines in front and the columns renamed (T1..T4 -> `columns`).
+std::string with_meta(const std::string& meta, const std::string& columns = "T1,T2,T3,T4", int rows = 200) {
+  std::string s = recording_csv(rows);
+  const std::string header = "time_s,speed_rpm,ambient_c,T1,T2,T3,T4";
+  s.replace(s.find(header), header.size(), "time_s,speed_rpm,ambient_c," + columns);
+  return meta + s;
+}
+
+// `# event_columns: T4` with 24.x degC in it, or a boundary column that is not there: residual
+// refused them, validate, fit and heat used them as if declared properly.
+TEST(Metadata, DeclaredColumnsAreCheckedByEveryCommand) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("event.csv"), with_meta("# event_columns: T4\n"));
+  write_text(d.file("boundary.csv"), with_meta("# boundary_columns: coolant_c\n"));
+  for (const char* cmd : {"validate model.json event.csv", "fit event.csv --preset spindle4 --sum-c 20478.7 --out m.json",
+                          "heat model.json event.csv --out h"}) {
+    const CliResult r = run_btsm(d, cmd);
+    EXPECT_EQ(r.code, 2) << cmd << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, "event.csv") && mentions(r, "event column 'T4' must be 0 or 1") && mentions(r, "data row 1")) << r.err;
+  }
+  const CliResult b = run_btsm(d, "validate model.json boundary.csv");
+  EXPECT_EQ(b.code, 2) << b.err;
+  EXPECT_TRUE(mentions(b, "boundary.csv") && mentions(b, "'coolant_c' is not in the header")) << b.err;
+}
+
+// Four probes all "rear_bearing": the fit used the last for the rear bearing and left the housing
+// and the front bearing unmeasured. An ambient_channel that is no channel, or that channel_roles
+// gives another role, dropped the ambient from the model's channel map.
+TEST(Metadata, ChannelRolesThatContradictAreRefusedNamingTheChannels) {
+  ScratchDir d;
+  const std::string fit = "fit rec.csv --preset spindle4 --sum-c 20478.7 --out m.json";
+  const struct {
+    const char* meta;
+    const char* says;
+  } cases[] = {
+      {"# channel_roles: T1=rear_bearing,T2=rear_bearing,T3=rear_bearing,T4=ambient,T5=rear_bearing\n",
+       "role 'rear_bearing' is on two channels, T1 and T2"},
+      {"# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearng,T4=ambient,T5=shaft\n", "unknown role 'front_bearng'"},
+      {"# channel_roles: T1=rear_bearing,T1=housing,T3=front_bearing,T4=ambient,T5=shaft\n", "channel T1 is listed twice"},
+      {"# ambient_channel: T9\n", "'T9' is not a module channel"},
+      {"# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft\n# ambient_channel: T2\n",
+       "T2 has the role 'housing'"},
+  };
+  for (const auto& c : cases) {
+    write_text(d.file("rec.csv"), with_meta(c.meta, "T1,T2,T3,T5"));
+    const CliResult r = run_btsm(d, fit);
+    EXPECT_EQ(r.code, 2) << c.meta << r.err;
+    EXPECT_TRUE(mentions(r, "rec.csv") && mentions(r, c.says)) << c.meta << r.err;
+  }
+  // No roles, but the ambient channel is a column a node measures (spindle4 measures T1..T4).
+  write_text(d.file("rec.csv"), with_meta("# ambient_channel: T1\n"));
+  const CliResult a = run_btsm(d, fit);
+  EXPECT_EQ(a.code, 2) << a.err;
+  EXPECT_TRUE(mentions(a, "column 'T1' measures node 'rear_bearing'") && mentions(a, "ambient channel")) << a.err;
+  // The honest module recording still maps its probes.
+  write_text(d.file("rec.csv"),
+             with_meta("# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft\n# ambient_channel: T4\n",
+                       "T1,T2,T3,T5"));
+  const CliResult fitted = run_btsm(d, fit + " --iterations 3", 300);
+  EXPECT_FALSE(mentions(fitted, "metadata")) << fitted.err;
+  EXPECT_TRUE(mentions(fitted, "shaft=T5")) << fitted.err;
+}
+
+// The same recording twice was fitted with double weight (sigmas understated); residual scored its
+// "held-out" check on the fit recording itself.
+TEST(Repeats, TheSameRecordingTwiceIsRefused) {
+  ScratchDir d;
+  write_text(d.file("a.csv"), recording_csv(200));
+  write_text(d.file("copy.csv"), "# source: a copy\n" + recording_csv(200));
+  const CliResult f = run_btsm(d, "fit a.csv copy.csv --preset spindle4 --sum-c 20478.7 --out m.json");
+  EXPECT_EQ(f.code, 2) << f.err;
+  EXPECT_TRUE(mentions(f, "copy.csv: holds the same samples as a.csv")) << f.err;
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+  const CliResult r = run_btsm(d, "residual --preset spindle4 --fit a.csv --check copy.csv");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_TRUE(mentions(r, "copy.csv") && mentions(r, "held out")) << r.err;
+}
+
+// A network measuring one column at two nodes was accepted (the validate table showed T1 twice);
+// a node named with an ESC and a newline was printed raw into the terminal.
+TEST(Networks, OneColumnForTwoNodesAndControlCharactersInNamesAreRefused) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  for (auto& meas : m["network"]["measurements"])
+    if (meas["column"] == "T2") meas["column"] = "T1";
+  write_text(d.file("dup.json"), m.dump(2));
+  const CliResult dup = run_btsm(d, "validate dup.json rec.csv");
+  EXPECT_EQ(dup.code, 2) << dup.err;
+  EXPECT_TRUE(mentions(dup, "one column cannot measure two nodes")) << dup.err;
+  nlohmann::json c = nlohmann::json::parse(spindle4_model_json());
+  const std::string bad = "hous\x1b[2Jing\n";
+  c["network"]["nodes"][1]["name"] = bad;
+  for (auto& meas : c["network"]["measurements"])
+    if (meas["node"] == "housing") meas["node"] = bad;
+  for (auto& l : c["network"]["links"])
+    for (auto& end : l["between"])
+      if (end == "housing") end = bad;
+  write_text(d.file("ctrl.json"), c.dump(2));
+  const CliResult ctrl = run_btsm(d, "validate ctrl.json rec.csv");
+  EXPECT_EQ(ctrl.code, 2) << ctrl.err;
+  EXPECT_TRUE(mentions(ctrl, "control character")) << ctrl.err;
+  EXPECT_EQ(ctrl.err.find('\x1b'), std::string::npos) << "the ESC is shown escaped";
+  write_text(d.file("ctrl.csv"), "time_s,speed_rpm,ambient_c,T\x1b" "1\n0,0,20,20\n");
+  const CliResult h = run_btsm(d, "heat spindle4 ctrl.csv");
+  EXPECT_EQ(h.code, 2) << h.err;
+  EXPECT_TRUE(mentions(h, "ctrl.csv:1:4") && mentions(h, "control character")) << h.err;
+}
+
+// A named pipe nobody writes to: every reader blocked in open() for ever.
+TEST(Inputs, ANamedPipeWithoutAWriterIsAnErrorNotAHang) {
+  ScratchDir d;
+  ASSERT_EQ(::mkfifo(d.file("fifo.csv").c_str(), 0600), 0);
+  write_text(d.file("model.json"), spindle4_model_json());
+  const CliResult r = run_btsm(d, "validate model.json fifo.csv", 20);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_TRUE(mentions(r, "fifo.csv") && mentions(r, "named pipe")) << r.err;
+}
+
+// A residual base fit that is no model (the spindle never turned): "unexplained", exit 0, where
+// fit refuses the same data. And lists that name nothing meant "all" (--effects ,) or the default.
+TEST(Inputs, ADegenerateBaseAndEmptyListsAreRefused) {
+  ScratchDir d;
+  write_text(d.file("still.csv"), recording_csv(200, [](int, int col, const std::string& text) {
+               return col == 1 ? std::string("0") : col >= 3 ? std::string("20.0000") : text;
+             }));
+  write_text(d.file("rec.csv"), recording_csv(200));
+  const CliResult r = run_btsm(d, "residual --preset spindle4 --fit still.csv --check rec.csv --threads 1", 300);
+  EXPECT_EQ(r.code, 1) << r.err;
+  EXPECT_TRUE(mentions(r, "no usable model")) << r.err;
+  EXPECT_TRUE(r.out.empty()) << "no verdict printed: " << r.out;
+  const CliResult e = run_btsm(d, "residual --preset spindle4 --fit still.csv --check rec.csv --effects ,");
+  EXPECT_EQ(e.code, 2) << e.err;
+  EXPECT_TRUE(mentions(e, "names no effect family")) << e.err;
+  const CliResult n = run_btsm(d, "heat spindle4 rec.csv --nodes ,");
+  EXPECT_EQ(n.code, 2) << n.err;
+  EXPECT_TRUE(mentions(n, "names no node")) << n.err;
+  const CliResult s = run_btsm(d, "sim-module --pty p --duration 1e306h");
+  EXPECT_EQ(s.code, 2) << s.err;
+  EXPECT_TRUE(mentions(s, "--duration") && mentions(s, "31 years")) << s.err;
+}
+
+// Two rows at rest "calibrated" the detector and wrote the blob.
+TEST(Inputs, DetectorBandsNeedAnHourOfRunning) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("short.csv"), recording_csv(2));
+  const CliResult r = run_btsm(d, "reduce model.json --speeds 4000,6000 --calibrate-bands short.csv --out r.json --blob m.bin", 300);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_TRUE(mentions(r, "min of running")) << r.err;
+  EXPECT_FALSE(file_exists(d.file("m.bin")));
+}
+
+// A reduced-model JSON whose blob_hex says one model and whose scheduled_model table another was
+// flashed as the blob said: the table a user checked was not what the module got.
+TEST(Inputs, AReducedModelWhoseBlobContradictsItsTableIsNotFlashed) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  const CliResult r = run_btsm(d, "reduce model.json --speeds 4000,6000 --force --out r.json", 300);
+  ASSERT_EQ(r.code, 0) << r.err;
+  nlohmann::json j = nlohmann::json::parse(read_text(d.file("r.json")));
+  const CliResult honest = run_btsm(d, "flash-model r.json --port /nonexistent/tty");
+  EXPECT_FALSE(mentions(honest, "contradicts")) << honest.err;
+  j["scheduled_model"]["breakpoints"][1]["speed_rpm"] = 4500;
+  write_text(d.file("speed.json"), j.dump(2));
+  const CliResult s = run_btsm(d, "flash-model speed.json --port /nonexistent/tty");
+  EXPECT_EQ(s.code, 2) << s.err;
+  EXPECT_TRUE(mentions(s, "speed.json") && mentions(s, "contradicts \"scheduled_model\"") && mentions(s, "breakpoint 1")) << s.err;
+  j = nlohmann::json::parse(read_text(d.file("r.json")));
+  j["scheduled_model"]["breakpoints"][2]["a"][0] = 0.5;
+  write_text(d.file("pole.json"), j.dump(2));
+  const CliResult p = run_btsm(d, "flash-model pole.json --port /nonexistent/tty");
+  EXPECT_EQ(p.code, 2) << p.err;
+  EXPECT_TRUE(mentions(p, "pole")) << p.err;
+}
+
+}  // namespace
+}  // namespace btsm::test
