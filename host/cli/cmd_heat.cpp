@@ -183,8 +183,16 @@ void run_heat(const HeatArgs& a) {
     std::cout << j.dump(2) << "\n";
     return;
   }
-  std::cout << fmt::format("Inverse heat sources: {} on {} ({} steps of {:g} s)\n", a.recording, model.network.name,
-                           r.heat_w.rows(), a.step_s);
+  // A step holds at least one sample interval: with samples further apart than --step, the steps
+  // are the sample intervals, and saying "steps of 60 s" of hourly samples would misstate them.
+  const double mean_step_s = r.piece_start_s.size() > 1
+                                 ? (r.piece_start_s.back() - r.piece_start_s.front()) / static_cast<double>(r.piece_start_s.size() - 1)
+                                 : a.step_s;
+  const std::string steps = mean_step_s > 1.5 * a.step_s
+                                ? fmt::format("{} steps, one per sample interval (mean {:.4g} s): --step {:g} s is shorter than the samples' spacing",
+                                              r.heat_w.rows(), mean_step_s, a.step_s)
+                                : fmt::format("{} steps of {:g} s", r.heat_w.rows(), a.step_s);
+  std::cout << fmt::format("Inverse heat sources: {} on {} ({})\n", a.recording, model.network.name, steps);
   std::cout << fmt::format("  method {} ({}), alpha = {:.4g} K^2/W^2 chosen by {}{}\n", a.method,
                            a.scheme == "cn" ? "Crank-Nicolson" : "exact ZOH", r.alpha, r.rule,
                            r.monte_carlo_evaluations ? fmt::format(" ({} evaluations)", r.monte_carlo_evaluations) : "");

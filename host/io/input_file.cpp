@@ -60,10 +60,16 @@ std::string read_input_file(const std::string& path, std::size_t max_bytes, cons
     }
     const auto got = static_cast<std::size_t>(n);
     if (kind == FileKind::Text) {
-      if (const void* nul = std::memchr(buf, '\0', got))
+      if (const void* nul = std::memchr(buf, '\0', got)) {
+        // Spreadsheets and PowerShell save "Unicode" text as UTF-16: every other byte NUL.
+        const auto b = [&](std::size_t i) { return i < got ? static_cast<unsigned char>(buf[i]) : 0x100; };
+        const bool utf16 = out.empty() && ((b(0) == 0xFF && b(1) == 0xFE) || (b(0) == 0xFE && b(1) == 0xFF) ||
+                                           (b(0) != 0 && b(1) == 0 && b(2) != 0 && b(3) == 0));
+        if (utf16) throw InputError(path + ": UTF-16 text, expected a " + what + " in UTF-8 (or ASCII): save it as UTF-8");
         throw InputError(path + ": not a text file (NUL byte at offset " +
                          std::to_string(out.size() + static_cast<std::size_t>(static_cast<const char*>(nul) - buf)) +
                          "), expected a " + what);
+      }
     }
     if (got > max_bytes - out.size()) too_large(path, max_bytes, what);
     out.append(buf, got);

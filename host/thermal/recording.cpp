@@ -7,6 +7,7 @@
 #include "host/io/input_file.hpp"
 
 #include <charconv>
+#include <cstdlib>
 #include <cmath>
 #include <fstream>
 #include <limits>
@@ -65,6 +66,13 @@ double parse_number(const std::string& cell, bool allow_empty, const std::string
   const char* last = cell.data() + cell.size();
   if (*first == '+') ++first;  // from_chars rejects a leading '+'
   auto [ptr, ec] = std::from_chars(first, last, v);
+  if (ec == std::errc::result_out_of_range && ptr == last) {
+    // A well-formed number beyond a double: one too small to hold (1e-400) is 0 for any
+    // temperature, speed or time; one too large is named as such, not as a "bad number".
+    const double s = std::strtod(std::string(first, last).c_str(), nullptr);
+    if (s == 0.0) return 0.0;
+    fail(src, line, col, "column '" + column_name + "': '" + shown(cell) + "' is beyond the range of a number (+-1.8e308)");
+  }
   if (ec != std::errc() || ptr != last)
     fail(src, line, col, "column '" + column_name + "': bad number '" + shown(cell) + "'");
   if (!std::isfinite(v)) fail(src, line, col, "column '" + column_name + "': non-finite value '" + shown(cell) + "'");

@@ -35,7 +35,10 @@ ErrorMetrics error_metrics(const Eigen::VectorXd& ref, const Eigen::VectorXd& pr
     m.max_abs_K = std::max(m.max_abs_K, std::abs(e));
   }
   m.rmse_K = std::sqrt(se / static_cast<double>(m.count));
-  m.nmse = sv > 0 ? 1.0 - se / sv : kNaN;
+  // A constant reference has no variance to normalise by; rounding of the mean leaves ~1e-25 K^2 of
+  // it for some constants (-273.15 gave an NMSE of -9.9e27), so "constant" is a spread below 1 nK.
+  constexpr double kNoSpreadK = 1e-9;
+  m.nmse = sv > static_cast<double>(m.count) * kNoSpreadK * kNoSpreadK ? 1.0 - se / sv : kNaN;
   return m;
 }
 

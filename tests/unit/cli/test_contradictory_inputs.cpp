@@ -158,6 +158,26 @@ TEST(Inputs, ADegenerateBaseAndEmptyListsAreRefused) {
   EXPECT_TRUE(mentions(s, "--duration") && mentions(s, "31 years")) << s.err;
 }
 
+// A spreadsheet's "Unicode" CSV was reported as "NUL byte at offset 3"; heat said "steps of 60 s"
+// of hourly samples, whose steps are the sample intervals.
+TEST(Inputs, Utf16TextAndStepsStretchedToTheSamplesAreNamed) {
+  ScratchDir d;
+  const std::string text = recording_csv(20);
+  std::string utf16 = "\xFF\xFE";
+  for (const char c : text) utf16 += std::string(1, c) + std::string(1, '\0');
+  write_text(d.file("unicode.csv"), utf16);
+  write_text(d.file("model.json"), spindle4_model_json());
+  const CliResult u = run_btsm(d, "validate model.json unicode.csv");
+  EXPECT_EQ(u.code, 2) << u.err;
+  EXPECT_TRUE(mentions(u, "unicode.csv: UTF-16 text") && mentions(u, "save it as UTF-8")) << u.err;
+  write_text(d.file("hourly.csv"), recording_csv(60, [](int row, int col, const std::string& text) {
+               return col == 0 ? std::to_string(3600 * row) : text;
+             }));
+  const CliResult h = run_btsm(d, "heat model.json hourly.csv --noise 0.01", 120);
+  EXPECT_EQ(h.code, 0) << h.err;
+  EXPECT_NE(h.out.find("one per sample interval (mean 3600 s): --step 60 s is shorter"), std::string::npos) << h.out;
+}
+
 // Two rows at rest "calibrated" the detector and wrote the blob.
 TEST(Inputs, DetectorBandsNeedAnHourOfRunning) {
   ScratchDir d;

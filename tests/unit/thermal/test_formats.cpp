@@ -2,6 +2,7 @@
 #include "host/thermal/fit.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
+#include "host/thermal/validate.hpp"
 
 #include <gtest/gtest.h>
 
@@ -54,6 +55,31 @@ TEST(RecordingCsv, ErrorsNameFileLineAndColumn) {
   const std::string time = error_of("time_s,speed_rpm,ambient_c,T1\n5,0,25,1\n5,0,25,1\n");
   EXPECT_NE(time.find("rec.csv:3:1:"), std::string::npos) << time;
   EXPECT_NE(error_of("").find("no header"), std::string::npos);
+}
+
+// 1e-400 was a "bad number"; it is a well-formed number too small for a double, i.e. 0. One too
+// large is named as beyond the range, not as malformed.
+TEST(RecordingCsv, NumbersBeyondADoubleAreZeroOrNamed) {
+  const Recording r = parse_recording_csv("time_s,speed_rpm,ambient_c,T1\n0,1e-400,25,25.1\n5,0,25,1e-999\n", "tiny.csv");
+  EXPECT_EQ(r.speed_rpm[0], 0.0);
+  EXPECT_EQ(r.temp_c(1, 0), 0.0);
+  const std::string big = error_of("time_s,speed_rpm,ambient_c,T1\n0,0,25,1e400\n");
+  EXPECT_NE(big.find("rec.csv:2:4:"), std::string::npos) << big;
+  EXPECT_NE(big.find("beyond the range of a number"), std::string::npos) << big;
+}
+
+// A validation table printed NMSE -9.9e27 for a constant -273.15 degC column (the mean's rounding
+// left 1e-25 K^2 of variance) and "--" for a constant 20 degC one: both have no variance.
+TEST(RecordingCsv, AConstantReferenceHasNoNmse) {
+  for (const double c : {-273.15, 20.0, 0.1}) {
+    const Eigen::VectorXd ref = Eigen::VectorXd::Constant(37, c), pred = ref.array() + 0.5;
+    const ErrorMetrics m = error_metrics(ref, pred);
+    EXPECT_TRUE(std::isnan(m.nmse)) << c << ": " << m.nmse;
+    EXPECT_NEAR(m.rmse_K, 0.5, 1e-9);
+  }
+  Eigen::VectorXd ramp(3);
+  ramp << 20.0, 21.0, 22.0;
+  EXPECT_NEAR(error_metrics(ramp, ramp).nmse, 1.0, 1e-12);
 }
 
 TEST(RecordingCsv, WriterRoundTrip) {
