@@ -333,8 +333,11 @@ bool decode_find_info_rsp(std::span<const uint8_t> p, std::vector<InfoRecord>& r
 }
 
 Pdu encode_value_rsp(uint8_t opcode, std::span<const uint8_t> value) {
-  Pdu p{opcode};
-  p.insert(p.end(), value.begin(), value.end());
+  // Sized once and copied into: inserting into a one-byte vector made GCC 12 warn of a memcpy out
+  // of bounds (-Warray-bounds, a false positive of its inlined reallocation).
+  Pdu p(1 + value.size());
+  p[0] = opcode;
+  std::copy(value.begin(), value.end(), p.begin() + 1);
   return p;
 }
 

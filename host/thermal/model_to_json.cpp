@@ -3,6 +3,8 @@
 #include "model_file.hpp"
 #include "recording_metadata.hpp"
 
+#include <fmt/core.h>
+
 #include <map>
 
 namespace btsm::thermal {
@@ -17,7 +19,7 @@ nlohmann::json channel_map_json(const Network& net, const std::vector<Recording>
   }
   nlohmann::json map = nlohmann::json::array();
   for (int ch = 1; ch <= 5; ++ch) {
-    const std::string column = "T" + std::to_string(ch);
+    const std::string column = fmt::format("T{}", ch);  // not "T" + to_string: GCC 12 -Wrestrict false positive
     if (recs.empty()) continue;
     if (recs.front().channel_index(column) < 0) {
       // btsm record writes the ambient channel's reading as ambient_c, not as its own column.
