@@ -233,8 +233,10 @@ void register_heat_commands(CLI::App& app) {
         return true;
       }, "Search range MIN MAX of alpha [K^2/W^2] (default 1e-10 1e3)")->expected(2);
   cmd->add_option("--alpha-points", args->alpha_points, "Grid points of the alpha scan (default 40)");
-  cmd->add_option("--noise", args->noise_k, "Measurement noise sigma [K] (default: estimated from the data)")
-      ->check(CLI::PositiveNumber);
+  // Below 10 uK (the AD7794's noise is ~1 mK) the weights of the inverse reach 1e10/K and its
+  // normal equations lose every digit: --noise 1e-7 gave 2.5e80 K residuals with exit 0.
+  cmd->add_option("--noise", args->noise_k, "Measurement noise sigma [K], at least 1e-5 (default: estimated from the data)")
+      ->check(CLI::Range(1e-5, 1e3));
   cmd->add_option("--scheme", args->scheme, "Time discretisation: cn (Crank-Nicolson, as in the paper; default) or exact (ZOH)");
   cmd->add_option("--nodes", args->nodes, "Comma-separated node names receiving unknown heat (default: the network's source nodes)");
   cmd->add_flag("--keep-model-sources", args->keep_model_sources,

@@ -43,7 +43,21 @@ void run_residual(ResidualArgs& a) {
     } else if (a.use_values) {
       model = th::load_model_with_parameters(a.network);
     } else {
-      model.network = th::load_network(a.network);
+      try {
+        model.network = th::load_network(a.network);
+      } catch (const std::invalid_argument& e) {
+        // A fitted model given where a network is read fails on its extra fields ("unknown field
+        // 'channel_map'"); say what the user meant instead.
+        bool fitted_model = false;
+        try {
+          (void)th::load_model_with_parameters(a.network);
+          fitted_model = true;
+        } catch (const std::exception&) {
+        }
+        if (!fitted_model) throw;
+        throw std::invalid_argument(a.network + ": a fitted model, not a network: add --use-values to keep its fitted values "
+                                                "as the base, or give the network it was fitted with");
+      }
     }
     for (const auto& f : a.fit) fit.push_back(th::read_recording_csv(f));
     for (const auto& f : a.check) check.push_back(th::read_recording_csv(f));

@@ -34,8 +34,9 @@ bool parse_number(const std::string& text, double& out) {
 }
 
 void run(const RtdOptions& o, Direction dir) {
-  if (!std::isfinite(o.r0_ohm) || o.r0_ohm <= 0.0)
-    throw CommandError(kExitUsage, fmt::format("--r0 must be a positive resistance in ohm, got {}", o.r0_ohm));
+  // Platinum RTDs are made from Pt10 to Pt10000; beyond 1 MOhm the conversion overflows (inf).
+  if (!std::isfinite(o.r0_ohm) || o.r0_ohm <= 0.0 || o.r0_ohm > 1e6)
+    throw CommandError(kExitUsage, fmt::format("--r0 must be a resistance in ohm in (0, 1e6] (100 = Pt100, 1000 = Pt1000), got {:g}", o.r0_ohm));
   const RtdCoefficients<double> k = iec60751<double>(o.r0_ohm);
   const bool r2t = dir == Direction::kResistanceToTemperature;
   const char* in_unit = r2t ? "ohm" : "degC";

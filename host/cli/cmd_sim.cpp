@@ -209,7 +209,11 @@ void register_sim_commands(CLI::App& app) {
   cmd->add_option("--time-scale", a->time_scale, "simulated seconds per wall second, or max")->capture_default_str();
   cmd->add_option("--truth-out", a->truth_out,
                   "write the plant's true temperatures (recording CSV: T1..T5 at the probes, node temperatures, extra heat)");
-  cmd->add_option("--truth-period", a->truth_period_s, "seconds between truth rows")->capture_default_str();
+  // Not below the plant's 0.25 s step: shorter periods repeat time stamps (which btsm's readers
+  // refuse) and 1e-9 s wrote 13 GB in minutes.
+  cmd->add_option("--truth-period", a->truth_period_s, "seconds between truth rows (0.25 .. 86400)")
+      ->check(CLI::Range(0.25, 86400.0))
+      ->capture_default_str();
   cmd->add_option("--fault", a->faults,
                   "fault KIND[:ARG]@START[-END], repeatable: open:ch2@3600, openchain:ch3@1h, short:ch1@100, "
                   "noadc@0, noref@50, bearing:25W@2h (rear bearing), bearing:front:25W@2h");

@@ -100,6 +100,12 @@ class ResidualLoop {
     if (fit_.empty()) throw std::invalid_argument("residual: no fit recordings (--fit)");
     if (check_.empty()) throw std::invalid_argument("residual: no check recordings (--check)");
     base_.validate();
+    // A check of a few rows scores the base by its first samples, which set its initial state: one
+    // row scored 0.0000 K and "none" was the verdict. Ten samples is the least that tells anything.
+    for (const auto& r : check_)
+      if (r.rows() < kMinCheckRows)
+        throw std::invalid_argument(r.source + ": a check recording needs at least " + std::to_string(kMinCheckRows) +
+                                    " rows to score a model on, it has " + std::to_string(r.rows()));
     for (const auto* set : {&fit_, &check_})
       for (const auto& r : *set) {
         th::measurement_columns(base_, r);  // throws naming a missing or declared column

@@ -212,7 +212,11 @@ struct LoopResult {
   double seconds = 0;
 };
 
-// Throws std::invalid_argument on unusable input (no recordings, missing columns, ...).
+// Rows a check recording must hold: fewer are scored by the samples that set the initial state.
+inline constexpr std::size_t kMinCheckRows = 10;
+
+// Throws std::invalid_argument on unusable input (no recordings, missing columns, a check recording
+// of fewer than kMinCheckRows rows, ...).
 LoopResult run_residual_loop(const thermal::Network& base, const Eigen::VectorXd& base_params,
                              const std::vector<thermal::Recording>& fit, const std::vector<thermal::Recording>& check,
                              const LoopOptions& opts = {});

@@ -129,6 +129,18 @@ class FitPipeline {
     for (const auto& nd : net_.nodes) any_c_free = any_c_free || !held(nd.capacitance_param);
     use_sum_c_ = std::isfinite(sum_c_) && any_c_free;
     if (use_sum_c_) {
+      // The gauge must be reachable within the capacitances' bounds, or the fit pins every one at a
+      // bound and reports "converged" with a sum it does not have (--sum-c 3 ended at 4 J/K).
+      double lo = 0, hi = 0;
+      for (const auto& nd : net_.nodes) {
+        const int c = nd.capacitance_param;
+        lo += held(c) ? p_[c] : param(c).min;
+        hi += held(c) ? p_[c] : param(c).max;
+      }
+      if (!(sum_c_ > 0) || sum_c_ < lo || sum_c_ > hi)
+        throw std::invalid_argument("fit: the sum of capacitances " + fmt_double(sum_c_) + " J/K (--sum-c or \"sum_capacitance_J_per_K\") " +
+                                    "cannot be reached: the capacitances within their bounds sum to " + fmt_double(lo) + " .. " +
+                                    fmt_double(hi) + " J/K");
       res_.gauge = "sum of capacitances fixed at " + fmt_double(sum_c_) + " J/K";
       if (any_held) res_.gauge += "; held parameters: " + held_names;
     } else if (any_held) {

@@ -28,12 +28,26 @@ int role_of_name(const std::string& name) {
   return -1;
 }
 
+// The value of a line that must say one thing: given twice with different values, the first would
+// win silently (the reader keeps every line; an edited file can hold the old one and a new one).
+std::string single_value(const Recording& rec, const char* key) {
+  std::string value;
+  bool seen = false;
+  for (const auto& [k, v] : rec.meta) {
+    if (k != key) continue;
+    if (seen && trimmed(v) != trimmed(value)) bad(rec, key, "given twice with different values ('" + value + "', '" + v + "')");
+    value = v;
+    seen = true;
+  }
+  return value;
+}
+
 }  // namespace
 
 std::vector<std::pair<std::string, std::string>> channel_roles(const Recording& rec) {
   static const char* kKey = "channel_roles";
   std::vector<std::pair<std::string, std::string>> out;
-  const std::string line = rec.meta_value(kKey);
+  const std::string line = single_value(rec, kKey);
   if (line.empty() || line.find('(') != std::string::npos) return out;  // absent, or firmware defaults
   std::stringstream ss(line);
   std::string item;
@@ -63,7 +77,7 @@ std::vector<std::pair<std::string, std::string>> channel_roles(const Recording& 
 
 std::string ambient_channel(const Recording& rec) {
   static const char* kKey = "ambient_channel";
-  const std::string ch = trimmed(rec.meta_value(kKey));
+  const std::string ch = trimmed(single_value(rec, kKey));
   if (ch.empty()) return ch;
   if (!(ch.size() == 2 && ch[0] == 'T' && ch[1] >= '1' && ch[1] <= '5'))
     bad(rec, kKey, "'" + ch + "' is not a module channel (T1..T5)");

@@ -178,6 +178,42 @@ TEST(Inputs, Utf16TextAndStepsStretchedToTheSamplesAreNamed) {
   EXPECT_NE(h.out.find("one per sample interval (mean 3600 s): --step 60 s is shorter"), std::string::npos) << h.out;
 }
 
+// The second probe (27 Nov, 537 cases): values at the edge that ended in exit 0 with a wrong result
+// -- heat --noise 1e-7 (2.5e80 K residuals), a one-row check ("none", RMSE 0.0000), --sum-c 3 J/K
+// below what the capacitances' bounds allow ("converged" at 4 J/K), rtd --r0 1e308 (inf),
+// --truth-period 1e-9 (13 GB) -- and metadata lines given twice with different values.
+TEST(Inputs, EdgeValuesOfTheSecondProbeAreRefused) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(200));
+  write_text(d.file("one.csv"), recording_csv(1));
+  write_text(d.file("three.csv"), recording_csv(3));
+  write_text(d.file("twice.csv"), "# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=shaft\n"
+                                  "# channel_roles: T1=housing,T2=rear_bearing,T3=front_bearing,T4=shaft\n" +
+                                      recording_csv(20));
+  const struct {
+    const char* args;
+    const char* says;
+  } cases[] = {
+      {"heat model.json rec.csv --noise 1e-7", "--noise"},
+      {"residual --preset spindle4 --fit rec.csv --check one.csv", "one.csv: a check recording needs at least 10 rows"},
+      {"residual --preset spindle4 --fit rec.csv --check three.csv", "three.csv: a check recording needs at least 10 rows"},
+      {"fit rec.csv --preset spindle4 --sum-c 3 --out m.json", "cannot be reached"},
+      {"fit rec.csv --preset spindle4 --sum-c 1e300 --out m.json", "cannot be reached"},
+      {"rtd t2r --r0 1e308 850", "--r0"},
+      {"sim-module --pty p --truth-out t.csv --truth-period 1e-9 --duration 1m", "--truth-period"},
+      {"validate model.json twice.csv", "given twice with different values"},
+      {"residual --network model.json --fit rec.csv --check three.csv", "add --use-values"},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = run_btsm(d, c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, c.says)) << c.args << "\n" << r.err;
+  }
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+  EXPECT_FALSE(file_exists(d.file("t.csv")));
+}
+
 // Two rows at rest "calibrated" the detector and wrote the blob.
 TEST(Inputs, DetectorBandsNeedAnHourOfRunning) {
   ScratchDir d;
