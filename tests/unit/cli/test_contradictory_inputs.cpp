@@ -2,6 +2,7 @@
 // the P3 rows of the hostile-input probe of 26 Nov. Each is now refused, naming the file and the
 // entries that disagree, before any work; the honest variant beside it still passes.
 #include "cli_run.hpp"
+#include "refusals.hpp"
 #include "model_fixture.hpp"
 
 #include <gtest/gtest.h>
@@ -191,10 +192,7 @@ TEST(Inputs, EdgeValuesOfTheSecondProbeAreRefused) {
   write_text(d.file("twice.csv"), "# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=shaft\n"
                                   "# channel_roles: T1=housing,T2=rear_bearing,T3=front_bearing,T4=shaft\n" +
                                       recording_csv(20));
-  const struct {
-    const char* args;
-    const char* says;
-  } cases[] = {
+  expect_refusals(d, {
       {"heat model.json rec.csv --noise 1e-7", "--noise"},
       {"residual --preset spindle4 --fit rec.csv --check one.csv", "one.csv: a check recording needs at least 10 rows"},
       {"residual --preset spindle4 --fit rec.csv --check three.csv", "three.csv: a check recording needs at least 10 rows"},
@@ -204,12 +202,7 @@ TEST(Inputs, EdgeValuesOfTheSecondProbeAreRefused) {
       {"sim-module --pty p --truth-out t.csv --truth-period 1e-9 --duration 1m", "--truth-period"},
       {"validate model.json twice.csv", "given twice with different values"},
       {"residual --network model.json --fit rec.csv --check three.csv", "add --use-values"},
-  };
-  for (const auto& c : cases) {
-    const CliResult r = run_btsm(d, c.args);
-    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
-    EXPECT_TRUE(mentions(r, c.says)) << c.args << "\n" << r.err;
-  }
+  });
   EXPECT_FALSE(file_exists(d.file("m.json")));
   EXPECT_FALSE(file_exists(d.file("t.csv")));
 }

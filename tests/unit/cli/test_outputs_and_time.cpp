@@ -2,6 +2,7 @@
 // meaningful answer: the rows of the hostile-input probe of 26 Nov that ended in exit 0 with a
 // wrong result or a lost file.
 #include "cli_run.hpp"
+#include "refusals.hpp"
 #include "model_fixture.hpp"
 
 #include "host/io/output_file.hpp"
@@ -162,22 +163,14 @@ TEST(Inputs, AnImageThatIsNotAnAvrElfAndReadingsWithoutNoiseAreNamed) {
 TEST(Inputs, OptionValuesWithoutMeaningAreRefusedByName) {
   ScratchDir d;
   write_text(d.file("rec.csv"), recording_csv(200));
-  const struct {
-    const char* args;
-    const char* option;
-  } cases[] = {
+  expect_refusals(d, {
       {"heat spindle4 rec.csv --noise -1", "--noise"},
       {"residual --preset spindle4 --fit rec.csv --check rec.csv --iterations -1", "--iterations"},
       {"residual --preset spindle4 --fit rec.csv --check rec.csv --check-improvement 0", "--check-improvement"},
       {"residual --preset spindle4 --fit rec.csv --check rec.csv --max-candidates 0", "--max-candidates"},
       {"sim-module --pty p --start-steady 1e9 --duration 1m", "--start-steady"},
       {"sim-module --pty p --noise -1 --duration 1m", "--noise"},
-  };
-  for (const auto& c : cases) {
-    const CliResult r = run_btsm(d, c.args);
-    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
-    EXPECT_TRUE(mentions(r, c.option)) << c.args << "\n" << r.err;
-  }
+  });
 }
 
 }  // namespace
