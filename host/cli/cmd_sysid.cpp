@@ -14,6 +14,7 @@
 
 #include <fmt/core.h>
 
+#include <array>
 #include <cmath>
 #include <filesystem>
 #include <fstream>
@@ -286,11 +287,20 @@ std::vector<std::string> channel_map(const Network& net, const json& model_json,
       ++ch;
     }
   } else if (have_map) {
+    // `btsm fit` writes one entry per channel and one ambient; a hand-edited map that says more
+    // would be resolved by its last entry (two ambients made the spare probe the ambient).
+    std::array<bool, 5> listed{};
     for (const auto& e : model_json.at("channel_map")) {
       const int ch = e.at("channel").get<int>() - 1;
+      if (listed[static_cast<std::size_t>(ch)])
+        throw CommandError(kExitUsage, "model JSON: channel_map lists channel " + std::to_string(ch + 1) + " twice");
+      listed[static_cast<std::size_t>(ch)] = true;
       if (!e.contains("node") || !e.at("node").is_string()) continue;
       const std::string node = e.at("node");
       if (node == "ambient") {
+        if (o.ambient_channel >= 0)
+          throw CommandError(kExitUsage, "model JSON: channel_map names two ambient channels (" + std::to_string(o.ambient_channel + 1) +
+                                             " and " + std::to_string(ch + 1) + "); say which with --channels");
         o.ambient_channel = ch;
       } else {
         const int n = net.node_index(node);

@@ -207,6 +207,22 @@ TEST(Inputs, EdgeValuesOfTheSecondProbeAreRefused) {
   EXPECT_FALSE(file_exists(d.file("t.csv")));
 }
 
+// A hand-edited channel map naming two ambient channels made the spare probe the ambient; one
+// listing a channel twice was resolved by its last entry.
+TEST(Inputs, AChannelMapThatSaysTwoThingsIsRefused) {
+  ScratchDir d;
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  m["channel_map"] = nlohmann::json::array({{{"channel", 1}, {"node", "rear_bearing"}},
+                                            {{"channel", 4}, {"node", "ambient"}},
+                                            {{"channel", 5}, {"node", "ambient"}}});
+  write_text(d.file("two.json"), m.dump(2));
+  m["channel_map"] = nlohmann::json::array({{{"channel", 1}, {"node", "rear_bearing"}}, {{"channel", 1}, {"node", "housing"}}});
+  write_text(d.file("twice.json"), m.dump(2));
+  expect_refusals(d, {{"reduce two.json --speeds 4000,6000 --force --out r.json", "names two ambient channels (4 and 5)"},
+                      {"reduce twice.json --speeds 4000,6000 --force --out r.json", "lists channel 1 twice"}});
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+}
+
 // Two rows at rest "calibrated" the detector and wrote the blob.
 TEST(Inputs, DetectorBandsNeedAnHourOfRunning) {
   ScratchDir d;
