@@ -55,13 +55,16 @@ int SerialTransport::open_fd() {
                                    "`btsm list` shows serial adapters)");
     if (err == EBUSY)
       throw LinkError(LinkErrorKind::kIo, describe() + ": device busy (another program has it open?)");
+    if (err == EISDIR)  // no device there, as a missing path: exit 3, not an I/O failure
+      throw LinkError(LinkErrorKind::kNoDevice, describe() + ": a directory, not a serial device (`btsm list` shows serial adapters)");
     throw errno_error(err, describe() + ": open", serial_permission_hint(path_));
   }
   termios tio{};
   if (::tcgetattr(fd, &tio) != 0) {
     const int err = errno;
     ::close(fd);
-    if (err == ENOTTY) throw LinkError(LinkErrorKind::kIo, describe() + ": not a serial device (tty)");
+    if (err == ENOTTY)  // a regular file or /dev/null: no module can answer there
+      throw LinkError(LinkErrorKind::kNoDevice, describe() + ": not a serial device (tty); `btsm list` shows serial adapters");
     throw errno_error(err, describe() + ": tcgetattr");
   }
   ::cfmakeraw(&tio);

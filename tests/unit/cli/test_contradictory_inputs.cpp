@@ -223,6 +223,16 @@ TEST(Inputs, AChannelMapThatSaysTwoThingsIsRefused) {
   EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
+// --port naming a regular file, a directory or /dev/null failed as an I/O error (exit 1): there is
+// no device there, as with a missing path (exit 3).
+TEST(Inputs, APortThatIsNoSerialDeviceIsNoDevice) {
+  ScratchDir d;
+  write_text(d.file("file.txt"), "not a tty\n");
+  expect_refusals(d, {{"info --port file.txt", "not a serial device"}, {"info --port /dev/null", "not a serial device"},
+                      {"info --port " + d.path, "a directory, not a serial device"}},
+                  3);
+}
+
 // Two rows at rest "calibrated" the detector and wrote the blob.
 TEST(Inputs, DetectorBandsNeedAnHourOfRunning) {
   ScratchDir d;
