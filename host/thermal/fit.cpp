@@ -75,9 +75,18 @@ class FitPipeline {
   }
   const RecordingInputs* inputs_of(std::size_t r) const { return net_.has_inputs() ? &inputs_[r] : nullptr; }
   void require_linear(const std::vector<int>& params, const std::vector<LinearForm>& forms) const {
-    for (int i : params)
-      if (forms[static_cast<std::size_t>(i)] == LinearForm::None)
-        throw std::invalid_argument("fit: parameter '" + param(i).name + "' enters non-linearly; give it an initial value");
+    const auto used_op = params_used(net_, Mode::Operating), used_cool = params_used(net_, Mode::Cooling);
+    for (int i : params) {
+      if (forms[static_cast<std::size_t>(i)] != LinearForm::None) continue;
+      const auto k = static_cast<std::size_t>(i);
+      bool drift = false;
+      for (const auto& m : net_.measurements) drift = drift || m.drift_param == i;
+      if (!used_op[k] && !used_cool[k] && !drift)  // no data can say anything of it: not a question of starts
+        throw std::invalid_argument("fit: parameter '" + param(i).name +
+                                    "' is used by no capacitance, link, source or measurement of the network: remove it or mark "
+                                    "it \"fixed\"");
+      throw std::invalid_argument("fit: parameter '" + param(i).name + "' enters non-linearly; give it an initial value");
+    }
   }
   bool any_free_without_start() const {
     for (int i : free_all_)

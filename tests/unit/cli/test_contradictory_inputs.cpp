@@ -223,6 +223,17 @@ TEST(Inputs, AChannelMapThatSaysTwoThingsIsRefused) {
   EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
+// A network parameter nothing uses was "enters non-linearly; give it an initial value": no start
+// helps a parameter no data can see.
+TEST(Networks, AParameterNothingUsesIsNamedAsSuch) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  m["network"]["parameters"].push_back({{"name", "unused"}, {"unit", "W/K"}, {"min", 0.001}, {"max", 10}});
+  write_text(d.file("net.json"), m["network"].dump(2));
+  expect_refusals(d, {{"fit rec.csv --network net.json --sum-c 20478.7 --out m.json", "'unused' is used by no capacitance"}});
+}
+
 // --port naming a regular file, a directory or /dev/null failed as an I/O error (exit 1): there is
 // no device there, as with a missing path (exit 3).
 TEST(Inputs, APortThatIsNoSerialDeviceIsNoDevice) {
