@@ -3,6 +3,7 @@
 
 #include "spindle4_preset.hpp"  // generated: kSpindle4Json (presets/spindle4.json)
 
+#include "host/io/input_error.hpp"
 #include "host/io/json_input.hpp"
 
 #include <cmath>
@@ -185,18 +186,8 @@ std::vector<std::string> Network::param_names() const {
   return v;
 }
 
-namespace {
-// A name with a control character (an ESC, a newline) would be printed raw into the terminal and
-// into every table and file that names it; it is shown JSON-escaped in the error instead.
-bool has_control_char(const std::string& s) {
-  for (const char c : s)
-    if (static_cast<unsigned char>(c) < 0x20 || c == 0x7f) return true;
-  return false;
-}
-}  // namespace
-
 void Network::validate() const {
-  if (has_control_char(name)) bad("network " + json(name).dump(), "name", "contains a control character");
+  if (io::has_control_char(name)) bad("network " + json(name).dump(), "name", "contains a control character");
   const std::string src = "network '" + name + "'";
   {
     std::vector<std::pair<std::string, std::string>> names;  // (what, name)
@@ -208,7 +199,7 @@ void Network::validate() const {
     for (const auto& b : boundaries) names.emplace_back("boundary column", b);
     for (const auto& e : events) names.emplace_back("event column", e);
     for (const auto& [what, n] : names)
-      if (has_control_char(n)) bad(src, what + " " + json(n).dump(), "contains a control character");
+      if (io::has_control_char(n)) bad(src, what + " " + json(n).dump(), "contains a control character");
   }
   if (nodes.empty()) bad(src, "nodes", "at least one node is required");
   if (!(speed_ref_rpm > 0)) bad(src, "speed_ref_rpm", "must be > 0");

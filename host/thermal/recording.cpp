@@ -155,9 +155,8 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
       std::unordered_set<std::string> seen;  // a set, not pairwise compares: a header may be huge
       for (std::size_t c = 3; c < cells.size(); ++c) {
         if (cells[c].empty()) fail(source, line_no, c + 1, "header: empty column name");
-        for (const char ch : cells[c])
-          if (static_cast<unsigned char>(ch) < 0x20 || ch == 0x7f)  // an ESC would be printed raw into every table
-            fail(source, line_no, c + 1, "header: column " + std::to_string(c + 1) + "'s name contains a control character");
+        if (io::has_control_char(cells[c]))
+          fail(source, line_no, c + 1, "header: column " + std::to_string(c + 1) + "'s name contains a control character");
         if (!seen.insert(cells[c]).second) fail(source, line_no, c + 1, "header: duplicate column '" + shown(cells[c]) + "'");
         rec.channels.push_back(cells[c]);
       }
