@@ -15,6 +15,7 @@
 
 #include <stddef.h>
 #include <stdint.h>
+#include <string.h>
 
 #include "byte_order.hpp"
 #include "channels.hpp"
@@ -218,6 +219,16 @@ inline const char* channel_role_name(uint8_t role) {
     case ChannelRole::Shaft: return "shaft";
   }
   return nullptr;
+}
+
+// Role byte of a role name ("rear_bearing" -> 3), or -1 when no role has that name: one lookup for
+// every reader of role names (set-config values, recording metadata).
+inline int channel_role_from_name(const char* name) {
+  for (uint8_t r = 0; r < kChannelRoleCount; ++r) {
+    const char* known = channel_role_name(r);
+    if (known != nullptr && strcmp(name, known) == 0) return r;
+  }
+  return -1;
 }
 
 // A role that names a measured thermal point (a bearing, the housing, ...): it gets the model's

@@ -1,6 +1,8 @@
 #include "cli_support.hpp"
 
+#include <cerrno>
 #include <cmath>
+#include <cstdint>
 #include <cstdlib>
 #include <iostream>
 
@@ -16,8 +18,12 @@ void add_link_options(CLI::App& cmd, LinkOptions& opts) {
   port->excludes(ble)->excludes(rf)->excludes(usb);
   ble->excludes(rf)->excludes(usb);
   rf->excludes(usb);
-  cmd.add_option("--rfcomm-channel", opts.rfcomm_channel, "RFCOMM channel for --rfcomm")->capture_default_str();
-  cmd.add_option("--timeout", opts.timeout_s, "reply timeout in seconds")->capture_default_str();
+  cmd.add_option("--rfcomm-channel", opts.rfcomm_channel, "RFCOMM channel for --rfcomm (1..30)")
+      ->check(CLI::Range(1, 30))  // the RFCOMM server channels Bluetooth defines
+      ->capture_default_str();
+  cmd.add_option("--timeout", opts.timeout_s, "reply timeout in seconds (0.01..3600)")
+      ->check(CLI::Range(0.01, 3600.0))
+      ->capture_default_str();
 }
 
 void refuse_non_finite_numbers(CLI::App& app) {
@@ -32,9 +38,74 @@ void refuse_non_finite_numbers(CLI::App& app) {
         return {};
       },
       "", "finite number");
-  for (CLI::Option* opt : app.get_options())
-    if (opt->get_type_name().find("FLOAT") != std::string::npos) opt->check(finite);
+  const CLI::Validator representable(
+      [](std::string& text) -> std::string {
+        const char* begin = text.c_str();
+        char* end = nullptr;
+        errno = 0;
+        (void)std::strtold(begin, &end);
+        if (end == begin) return {};  // the option's own conversion names it
+        const long double v = std::strtold(begin, nullptr);
+        if (v > static_cast<long double>(UINT64_MAX) || v < static_cast<long double>(INT64_MIN))
+          return "'" + text + "' is beyond the range of whole numbers this option takes";
+        return {};
+      },
+      "", "representable integer");
+  for (CLI::Option* opt : app.get_options()) {
+    const std::string type = opt->get_type_name();
+    if (type.find("FLOAT") != std::string::npos) opt->check(finite);
+    else if (type.find("INT") != std::string::npos) opt->check(representable);
+  }
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) refuse_non_finite_numbers(*sub);
+}
+
+namespace {
+CLI::Validator bound_check(bool strict, const char* name) {
+  return CLI::Validator(
+      [strict](std::string& text) -> std::string {
+        const char* begin = text.c_str();
+        char* end = nullptr;
+        const double v = std::strtod(begin, &end);
+        if (end == begin) return {};  // not a number: the option's own conversion says so
+        if (strict ? v > 0 : v >= 0) return {};
+        return std::string("must be ") + (strict ? "> 0" : ">= 0") + ", got " + text;
+      },
+      "", name);
+}
+}  // namespace
+
+CLI::Validator positive_number() { return bound_check(true, "positive number"); }
+CLI::Validator non_negative_number() { return bound_check(false, "non-negative number"); }
+
+bool parse_decimal(const std::string& text, double& out) {
+  const auto first = text.find_first_not_of(" \t");
+  if (first == std::string::npos) return false;
+  const auto last = text.find_last_not_of(" \t");
+  const std::string t = text.substr(first, last - first + 1);
+  // strtod also reads hex floats, "inf" and "nan": only digits, sign, point and exponent here
+  if (t.find_first_not_of("0123456789+-.eE") != std::string::npos) return false;
+  errno = 0;
+  char* end = nullptr;
+  out = std::strtod(t.c_str(), &end);
+  return errno != ERANGE && end == t.c_str() + t.size() && std::isfinite(out);
+}
+
+std::vector<double> number_list(const std::string& text, const std::string& option) {
+  std::vector<double> v;
+  if (text.empty()) return v;  // the option left at its default; the caller says whether that is enough
+  std::size_t start = 0;
+  while (true) {
+    const std::size_t comma = text.find(',', start);
+    const std::string tok = text.substr(start, comma == std::string::npos ? std::string::npos : comma - start);
+    double x = 0;
+    if (tok.find_first_not_of(" \t") == std::string::npos)
+      throw CommandError(kExitUsage, option + " '" + text + "': an empty entry (a doubled or trailing comma)");
+    if (!parse_decimal(tok, x)) throw CommandError(kExitUsage, option + ": '" + tok + "' is not a number");
+    v.push_back(x);
+    if (comma == std::string::npos) break;
+    start = comma + 1;
+  }
+  return v;
 }
 
 }  // namespace btsm::cli

@@ -6,6 +6,7 @@
 
 #include <stdexcept>
 #include <string>
+#include <vector>
 
 namespace btsm::cli {
 
@@ -39,6 +40,21 @@ void add_link_options(CLI::App& cmd, LinkOptions& opts);
 // Adds to every floating-point option of `app` and its subcommands (registered so far) a check
 // that refuses nan and inf (and numbers beyond double range): CLI11 converts "nan" to a double
 // and its Range and PositiveNumber checks let it through, since every comparison with NaN is false.
+// Integer options get one that refuses a number beyond their type (a seed of 1e20 digits was
+// taken as 2^64-1).
 void refuse_non_finite_numbers(CLI::App& app);
+
+// CLI11's PositiveNumber / NonNegativeNumber, with a message a user can read ("must be > 0, got
+// 0"), not "not in range 0.000000 to 1797...(300 digits)".
+CLI::Validator positive_number();
+CLI::Validator non_negative_number();
+
+// A number typed as an argument or a list entry: decimal (spaces around it allowed), finite; no
+// hex ("0x3e8" is not 1000 ohm to a user reading the command), no inf/nan. False if not.
+bool parse_decimal(const std::string& text, double& out);
+
+// "2000, 4000,6000" -> {2000, 4000, 6000}; CommandError (exit 2) naming `option` and the entry
+// that is not a number, or an empty entry (",,", a trailing comma).
+std::vector<double> number_list(const std::string& text, const std::string& option);
 
 }  // namespace btsm::cli

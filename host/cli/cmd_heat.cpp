@@ -3,6 +3,7 @@
 
 #include "cli_support.hpp"
 #include "host/io/output_file.hpp"
+#include "host/thermal/column_map.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
@@ -11,6 +12,7 @@
 #include <fmt/core.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <chrono>
 #include <cmath>
 #include <filesystem>
@@ -42,6 +44,8 @@ std::vector<int> parse_nodes(const th::Network& net, const std::string& list) {
       for (const auto& n : net.nodes) known += (known.empty() ? "" : ", ") + n.name;
       throw CommandError(kExitUsage, "--nodes: no node '" + name + "' in network " + net.name + " (nodes: " + known + ")");
     }
+    // one node twice would be two unknowns for the same heat: a singular split between them
+    if (std::find(out.begin(), out.end(), i) != out.end()) throw CommandError(kExitUsage, "--nodes: node '" + name + "' is listed twice");
     out.push_back(i);
   }
   // "--nodes ," names no node: the default (the network's source nodes) is asked for by leaving
@@ -88,6 +92,11 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
 }
 
 void run_heat(const HeatArgs& a) {
+  try {
+    io::refuse_output_dir_that_is_no_directory(a.out_dir, "--out");
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
   if (!a.out_dir.empty())
     for (const char* name : {"/heat_sources.csv", "/heat_alpha_scan.csv", "/heat_sources.png", "/heat_sources.svg"})
       io::refuse_output_over_input(a.out_dir + name, "--out", {a.model, a.recording});
@@ -103,8 +112,12 @@ void run_heat(const HeatArgs& a) {
   else throw CommandError(kExitUsage, "--scheme must be cn or exact, not '" + a.scheme + "'");
   if (!(a.step_s > 0)) throw CommandError(kExitUsage, "--step must be > 0 s");
   if (o.rule == th::AlphaRule::Fixed && !(a.alpha > 0)) throw CommandError(kExitUsage, "--alpha-rule fixed needs --alpha > 0");
+  if (o.rule != th::AlphaRule::Fixed && a.alpha != 0.0)
+    throw CommandError(kExitUsage, "--alpha is used only with --alpha-rule fixed (the rule '" + a.rule +
+                                       "' chooses alpha itself): add --alpha-rule fixed, or drop --alpha");
   o.step_s = a.step_s;
   o.alpha_fixed = a.alpha;
+  o.progress = [](const std::string& s) { std::cerr << "heat: " << s << "\n"; };
   o.noise_sigma_k = a.noise_k;
   o.alpha_min = a.alpha_min;
   o.alpha_max = a.alpha_max;
@@ -115,6 +128,8 @@ void run_heat(const HeatArgs& a) {
   try {
     model = th::load_model_with_parameters(a.model);
     rec = th::read_recording_csv(a.recording);
+    th::check_mapping_agrees_with_roles(model.network, {rec}, {},
+                                        "refit the model with this recording, or correct its channel_roles line");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }

@@ -81,10 +81,8 @@ uint8_t parse_config_key(const std::string& text) {
 }
 
 int32_t parse_config_value(uint8_t key, const std::string& text) {
-  if (key >= wire::kChannelRoleKeyFirst && key <= wire::kChannelRoleKeyLast) {
-    for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r)
-      if (text == wire::channel_role_name(r)) return r;
-  }
+  if (key >= wire::kChannelRoleKeyFirst && key <= wire::kChannelRoleKeyLast)
+    if (const int r = wire::channel_role_from_name(text.c_str()); r >= 0) return r;
   try {
     size_t used = 0;
     const long long v = std::stoll(text, &used, 10);

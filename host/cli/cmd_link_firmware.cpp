@@ -8,6 +8,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <filesystem>
 #include <iostream>
 #include <memory>
@@ -169,6 +170,13 @@ struct KeyImportArgs {
 void run_keys_import(const KeyImportArgs& a) {
   const auto key = key_from_hex(a.hex);
   if (!key) throw CommandError(kExitUsage, "key must be 64 hex characters (32 bytes)");
+  // All 00 or all FF is what an erased or never-written key record reads as, not a secret: a
+  // module "signed" with it accepts a model from anyone who guesses that.
+  for (const uint8_t blank : {uint8_t{0x00}, uint8_t{0xFF}})
+    if (std::all_of(key->begin(), key->end(), [blank](uint8_t b) { return b == blank; }))
+      throw CommandError(kExitUsage, fmt::format("key is all {:02X} bytes, what blank memory reads as, not a secret: use "
+                                                 "the module's real key, or `btsm keys generate ID` for a new one",
+                                                 blank));
   const KeyStore ks = KeyStore::from_environment();
   const uint32_t id = parse_device_id_or_throw(a.id);
   ks.save(id, *key, a.force);

@@ -3,6 +3,7 @@
 // explanation, "none" or "unexplained" (host/residual/).
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "host/io/output_file.hpp"
 #include "host/residual/residual_loop.hpp"
 #include "host/residual/residual_report.hpp"
 #include "host/thermal/column_map.hpp"
@@ -37,6 +38,7 @@ void run_residual(ResidualArgs& a) {
   th::ModelWithParameters model;
   std::vector<th::Recording> fit, check;
   try {
+    io::refuse_output_dir_that_is_no_directory(a.report_dir, "--report");
     if (!a.preset.empty()) {
       model.network = th::preset_network(a.preset);
       model.params = th::default_parameters(model.network);
@@ -81,6 +83,8 @@ void run_residual(ResidualArgs& a) {
   try {
     if (a.use_values) {
       // a fitted model says itself which column measures which node; only --column changes that
+      th::check_mapping_agrees_with_roles(model.network, all, a.columns,
+                                          "say which with --column NODE=COLUMN, or refit the model with these recordings");
       th::remap_measurements(model.network, a.columns);
       std::string said;
       for (const auto& m : model.network.measurements) said += " " + model.network.nodes[static_cast<std::size_t>(m.node)].name + "=" + m.column;
@@ -161,14 +165,15 @@ void register_residual_commands(CLI::App& app) {
   cmd->add_flag("--use-values", a->use_values,
                 "Do not refit the base: use the parameter values (and column mapping) of --network, a fitted model, and fit only the effects");
   cmd->add_option("--effects", a->effects, "Comma-separated subset of the effect families to try (default: all)");
-  cmd->add_option("--bic-margin", a->opts.bic_margin, "BIC decrease an effect must achieve on the fit recordings (default 10)");
+  cmd->add_option("--bic-margin", a->opts.bic_margin, "BIC decrease an effect must achieve on the fit recordings (default 10)")
+      ->check(CLI::Range(0.0, 1.0e6));
   cmd->add_option("--check-improvement", a->opts.check_improvement, "Required ratio check RMSE before/after (default 1.25)")
       ->check(CLI::Range(1.0, 1.0e6));
   cmd->add_option("--explained-factor", a->opts.explained_factor,
                   "Check RMSE cut that counts as explaining the residual; less is 'partial' (default 2)")
       ->check(CLI::Range(1.0, 1.0e6));
   cmd->add_option("--param-z", a->opts.param_z, "Required |parameter| / sigma of the effect's key parameters (default 3)")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--max-candidates", a->opts.max_candidates, "Proposals refitted jointly, best screening score first; while they repeat a family at the same nodes, further distinct ones until this many distinct explanations are refitted (default 4)")
       ->check(CLI::Range(1, 1000));
   cmd->add_option("--iterations", a->opts.max_iterations, "Levenberg-Marquardt iterations of each start's effect-only stage (default 60)")
@@ -177,12 +182,12 @@ void register_residual_commands(CLI::App& app) {
       ->check(CLI::Range(1, 1000000));
   cmd->add_option("--refit-step", a->opts.refit_step_s,
                   "Step [s] of the decimated fit recordings the candidate refits run on; the chosen one is polished at full rate (default 10)")
-      ->check(CLI::PositiveNumber);
+      ->check(positive_number());
   cmd->add_option("--threads", a->opts.threads,
                   "Independent refits run at once (default 0 = the machine's cores; the result does not depend on it)")
       ->check(CLI::Range(0, 1024));
   cmd->add_option("--trace-step", a->opts.trace_step_s, "Step of the unexplained-heat trace [s] (default max(60 s, 10 samples))")
-      ->check(CLI::NonNegativeNumber);
+      ->check(non_negative_number());
   cmd->add_option("--report", a->report_dir, "Write residual_result.json, residual_table.txt and plots (PNG + SVG) here")
       ->transform([](std::string dir) {  // "dir/" printed "dir//file"
         while (dir.size() > 1 && dir.back() == '/') dir.pop_back();

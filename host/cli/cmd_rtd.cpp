@@ -6,7 +6,6 @@
 
 #include <fmt/core.h>
 
-#include <cerrno>
 #include <cmath>
 #include <cstdlib>
 #include <memory>
@@ -24,15 +23,6 @@ struct RtdOptions {
 
 enum class Direction { kResistanceToTemperature, kTemperatureToResistance };
 
-// Strict number parsing: the whole argument must be a finite decimal number.
-bool parse_number(const std::string& text, double& out) {
-  if (text.empty()) return false;
-  errno = 0;
-  char* end = nullptr;
-  out = std::strtod(text.c_str(), &end);
-  return errno == 0 && end == text.c_str() + text.size() && std::isfinite(out);
-}
-
 void run(const RtdOptions& o, Direction dir) {
   // Platinum RTDs are made from Pt10 to Pt10000; beyond 1 MOhm the conversion overflows (inf).
   if (!std::isfinite(o.r0_ohm) || o.r0_ohm <= 0.0 || o.r0_ohm > 1e6)
@@ -48,7 +38,7 @@ void run(const RtdOptions& o, Direction dir) {
   for (size_t i = 0; i < o.values.size(); ++i) {
     const std::string& v = o.values[i];
     double x = 0.0;
-    if (!parse_number(v, x)) {
+    if (!parse_decimal(v, x)) {  // decimal only: "0x3e8" is no resistance a user means
       errors.push_back(fmt::format("value #{} '{}' is not a number ({} expected)", i + 1, v, in_unit));
       continue;
     }

@@ -3,6 +3,7 @@
 #include "commands.hpp"
 
 #include "host/io/output_file.hpp"
+#include "host/thermal/column_map.hpp"
 #include "host/thermal/detector_calibration.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
@@ -149,6 +150,11 @@ void run_validate(const ValidateArgs& a) {
   }
   const auto recs = read_all(a.recordings);
   const Network& net = model.network;
+  try {
+    check_mapping_agrees_with_roles(net, recs, {}, "refit the model with this recording, or correct its channel_roles line");
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
   ValidateOptions o;
   o.initial_rows = a.initial_rows;
   json out;
@@ -232,22 +238,6 @@ struct ReduceArgs {
   DetectorRule rule;
   bool force = false, json_out = false, no_carriers = false;
 };
-
-std::vector<double> number_list(const std::string& text, const std::string& option) {
-  std::vector<double> v;
-  std::stringstream ss(text);
-  std::string tok;
-  while (std::getline(ss, tok, ',')) {
-    try {
-      std::size_t used = 0;
-      v.push_back(std::stod(tok, &used));
-      if (used != tok.size()) throw std::invalid_argument(tok);
-    } catch (const std::exception&) {
-      throw CommandError(kExitUsage, option + ": '" + tok + "' is not a number");
-    }
-  }
-  return v;
-}
 
 // The channel map: from the fit's "channel_map" (what the recordings' channel roles and columns
 // said), or `--channels` (five entries: node name, 'ambient' or 'none'), or -- for a model JSON
@@ -347,6 +337,7 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   }
   const Network& net = model.network;
   ReduceOptions o;
+  o.progress = [](const std::string& s) { std::cerr << "reduce: " << s << "\n"; };
   o.speeds_rpm = number_list(a.speeds, "--speeds");
   // Checked before anything else is printed (the reduction checks them again).
   if (o.speeds_rpm.empty() || o.speeds_rpm.size() > kModelMaxBreakpoints - 1u)
@@ -566,7 +557,7 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("recordings", a->recordings, "Recording CSV files (time_s,speed_rpm,ambient_c,T1..)")->required()->check(CLI::ExistingFile);
     c->add_option("--preset", a->preset, "Built-in network: spindle4 (Lo, Hu & Chang 2018)");
     c->add_option("--network", a->network, "Network description JSON (see README: Network JSON)")->check(CLI::ExistingFile);
-    c->add_option("--sum-c", a->sum_c, "Known total heat capacity sum C_i in J/K (scale gauge)")->check(CLI::PositiveNumber);
+    c->add_option("--sum-c", a->sum_c, "Known total heat capacity sum C_i in J/K (scale gauge)")->check(positive_number());
     c->add_option("--column", a->columns, "NODE=COLUMN: which recording column measures a node (repeatable; NODE= drops it)");
     c->add_option("--out", a->out, "Model JSON to write")->required();
     c->add_option("--initial", a->initial, "Initial state per recording: estimate (default) or first (first samples)")
@@ -575,7 +566,7 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("--iterations", a->iterations,
                   "Levenberg-Marquardt iterations of the final joint stage (default " + std::to_string(a->iterations) +
                       "; the start stages use 60)")
-        ->check(CLI::PositiveNumber);
+        ->check(CLI::Range(1, 1000000));
     c->add_flag("--json", a->json_out, "Print the model JSON (parameters, sigma, ...) to stdout");
     c->callback([a] { run_fit(*a); });
   }
@@ -627,7 +618,7 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("--stop-phases", a->stop_phases, "Ends of the early stop phases in s (default 600,2400; '0' = one stop pole)");
     c->add_flag("--no-carriers", a->no_carriers, "Every channel's model plain (no channel rides on a slower channel's model)");
     c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the stop poles (default: the middle breakpoint)")
-        ->check(CLI::NonNegativeNumber);
+        ->check(non_negative_number());
     c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
         ->check(CLI::ExistingFile);
     c->add_option("--margin", a->rule.margin, "Calibration: WARN = margin x worst evidence + floor (default 1.5)");

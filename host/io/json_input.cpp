@@ -5,6 +5,10 @@
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
 
+#include <functional>
+#include <set>
+#include <vector>
+
 namespace btsm::io {
 namespace {
 
@@ -31,16 +35,65 @@ void check_depth(std::string_view text, const std::string& source, int max_depth
   }
 }
 
+// Notes the first key given twice in one object, as a path ("network.parameters[].name"). JSON
+// leaves duplicates undefined and the parser keeps the last, so {"name":"one","name":"two"} would
+// silently be "two" -- whichever a person editing the file meant.
+class DuplicateKeyWatch {
+ public:
+  bool operator()(int, nlohmann::json::parse_event_t event, nlohmann::json& parsed) {
+    using E = nlohmann::json::parse_event_t;
+    switch (event) {
+      case E::object_start: frames_.push_back({{}, "", true}); break;
+      case E::array_start: frames_.push_back({{}, "", false}); break;
+      case E::object_end:
+      case E::array_end:
+        if (!frames_.empty()) frames_.pop_back();
+        break;
+      case E::key: {
+        if (frames_.empty()) break;
+        const std::string key = parsed.get<std::string>();
+        if (!frames_.back().keys.insert(key).second && first_.empty()) first_ = path_to(key);
+        frames_.back().last_key = key;
+        break;
+      }
+      default: break;
+    }
+    return true;
+  }
+  const std::string& first_duplicate() const { return first_; }
+
+ private:
+  struct Frame {
+    std::set<std::string> keys;
+    std::string last_key;
+    bool object;
+  };
+  std::string path_to(const std::string& key) const {
+    std::string path;
+    for (std::size_t i = 0; i + 1 < frames_.size(); ++i)
+      path += frames_[i].object ? (path.empty() ? "" : ".") + frames_[i].last_key : "[]";
+    return path + (path.empty() ? "" : ".") + key;
+  }
+  std::vector<Frame> frames_;
+  std::string first_;
+};
+
 }  // namespace
 
 nlohmann::json parse_json_text(std::string_view text, const std::string& source, int max_depth) {
   check_depth(text, source, max_depth);
+  DuplicateKeyWatch watch;
+  nlohmann::json value;
   try {
-    return nlohmann::json::parse(text.begin(), text.end());
+    value = nlohmann::json::parse(text.begin(), text.end(), std::ref(watch));
   } catch (const nlohmann::json::exception& e) {
     // parse_error, and out_of_range for a number beyond double range (1e400)
     throw InputError(source + ": not valid JSON: " + e.what());
   }
+  if (!watch.first_duplicate().empty())
+    throw InputError(source + ": key " + json_excerpt(watch.first_duplicate(), 120) +
+                     " is given twice in one object; JSON keeps only one of them silently: delete the one you did not mean");
+  return value;
 }
 
 nlohmann::json read_json_file(const std::string& path, std::size_t max_bytes, const std::string& what) {

@@ -15,7 +15,8 @@ namespace btsm::io {
 constexpr int kMaxJsonDepth = 64;
 
 // Parses `text`; throws InputError naming `source`: nested deeper than max_depth (with the byte
-// offset), not valid JSON, or a number beyond double range.
+// offset), not valid JSON, a number beyond double range, or a key given twice in one object
+// (named by its path, e.g. "network.parameters[].name").
 nlohmann::json parse_json_text(std::string_view text, const std::string& source, int max_depth = kMaxJsonDepth);
 
 // Reads (read_input_file, Text) and parses a JSON file of at most max_bytes.

@@ -92,6 +92,13 @@ void refuse_output_over_input(const std::string& output, const std::string& opti
   }
 }
 
+void refuse_output_dir_that_is_no_directory(const std::string& dir, const std::string& option) {
+  struct stat st {};
+  if (dir.empty() || ::stat(dir.c_str(), &st) != 0 || S_ISDIR(st.st_mode)) return;
+  throw InputError(option + " " + dir + ": exists and is not a directory (the outputs are files written into it): "
+                   "choose a directory, or a new name");
+}
+
 std::string keep_existing_as_backup(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || st.st_size == 0) return "";

@@ -21,6 +21,10 @@ void write_output_file(const std::string& path, std::string_view content, const 
 // exist yet cannot be an input.
 void refuse_output_over_input(const std::string& output, const std::string& option, const std::vector<std::string>& inputs);
 
+// Throws InputError when `dir` (an output directory given with `option`, "--report") exists and
+// is not a directory: checked before the work, which would otherwise run to the end and fail there.
+void refuse_output_dir_that_is_no_directory(const std::string& dir, const std::string& option);
+
 // For an output that is rewritten from its first byte as the command goes (a recording): when
 // `path` is a non-empty regular file, renames it to the first free "<path>.~N~" (N = 1, 2, ...) and
 // returns that name; otherwise returns "". Throws std::runtime_error when the rename fails.

@@ -34,6 +34,21 @@ std::string blob_contradicts_schedule(const std::vector<uint8_t>& blob, const nl
   ReducedModel m;
   if (!decode(blob.data(), blob.size(), m).ok()) return {};
   if (!sm.is_object()) return "\"scheduled_model\" is not an object";
+  // A compared field that is no number would be skipped by the comparison below: name it.
+  auto not_number = [](const nlohmann::json& j, const char* key) {
+    return j.is_object() && j.contains(key) && !j[key].is_number();
+  };
+  for (const char* key : {"dt_ms", "enabled_mask"})
+    if (not_number(sm, key)) return std::string(key) + " is " + io::json_excerpt(sm[key]) + ", not a number";
+  if (sm.contains("breakpoints") && sm["breakpoints"].is_array())
+    for (std::size_t i = 0; i < sm["breakpoints"].size(); ++i) {
+      const nlohmann::json& bp = sm["breakpoints"][i];
+      if (not_number(bp, "speed_rpm")) return fmt::format("breakpoint {}: speed_rpm is {}, not a number", i, io::json_excerpt(bp["speed_rpm"]));
+      if (bp.is_object() && bp.contains("a") && bp["a"].is_array())
+        for (std::size_t k = 0; k < bp["a"].size(); ++k)
+          if (!bp["a"][k].is_number() && !bp["a"][k].is_null())
+            return fmt::format("breakpoint {} channel {}: pole is {}, not a number", i, k + 1, io::json_excerpt(bp["a"][k]));
+    }
   const ModelSchedule& s = m.schedule;
   auto number = [&](const nlohmann::json& j, const char* key, double& v) {
     if (!j.is_object() || !j.contains(key) || !j[key].is_number()) return false;
@@ -83,7 +98,30 @@ std::vector<uint8_t> model_blob_from_content(std::string_view content, const std
   if (j.is_object())
     for (const char* obj : {"blob", "model"})
       if (j.contains(obj) && j[obj].is_object()) node = &j[obj];
+  if (j.is_object() && j.contains("format")) {
+    // flash-model takes what `btsm reduce` writes ("btsm-reduced-model-N"); the fitted model from
+    // `btsm fit` has no blob, and a format that is no string says the file is not ours.
+    const nlohmann::json& f = j["format"];
+    if (!f.is_string() || f.get_ref<const std::string&>().rfind("btsm-reduced-model", 0) != 0)
+      throw io::InputError(path + ": \"format\" is " + io::json_excerpt(f) +
+                           (f.is_string() && f.get_ref<const std::string&>().rfind("btsm-thermal-model", 0) == 0
+                                ? ", a fitted model from `btsm fit`: reduce it first (`btsm reduce MODEL.json --out reduced.json`) and flash that"
+                                : ", not a reduced model from `btsm reduce` (\"btsm-reduced-model-2\")"));
+  }
   if (node->is_object()) {
+    // Two places a blob could come from are one too many: say which was meant instead of picking.
+    std::vector<std::string> given;
+    for (const char* key : {"blob_hex", "hex", "blob", "blob_file", "blob_path", "file", "path"})
+      if (node->contains(key)) {
+        if (!(*node)[key].is_string())
+          throw io::InputError(path + ": \"" + key + "\" is " + io::json_excerpt((*node)[key]) + ", not a string (" +
+                               (std::string(key).find("hex") != std::string::npos || std::string(key) == "blob"
+                                                  ? "the blob as hex digits)"
+                                                  : "the path of a blob file)"));
+        given.push_back(std::string("\"") + key + "\"");
+      }
+    if (given.size() > 1)
+      throw io::InputError(path + ": gives the blob twice (" + given[0] + " and " + given[1] + "); keep the one meant");
     for (const char* key : {"blob_hex", "hex", "blob"})
       if (node->contains(key) && (*node)[key].is_string()) {
         auto blob = io::hex_to_bytes((*node)[key].get_ref<const std::string&>(), path + ": \"" + key + "\"");

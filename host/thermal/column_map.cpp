@@ -87,4 +87,28 @@ std::string map_measurements(Network& net, const std::vector<Recording>& recs, c
   return said;
 }
 
+void check_mapping_agrees_with_roles(const Network& net, const std::vector<Recording>& recs,
+                                     const std::vector<std::string>& columns, const std::string& advice) {
+  for (const auto& rec : recs) {
+    const std::vector<std::string> roles_of = [&] {
+      std::vector<std::string> out(rec.channels.size());
+      for (const auto& [column, role] : channel_roles(rec))
+        if (rec.channel_index(column) >= 0) out[static_cast<std::size_t>(rec.channel_index(column))] = role;
+      return out;
+    }();
+    for (const auto& [node, column] : columns_from_roles(net, {rec}, columns)) {
+      for (const auto& m : net.measurements) {
+        if (net.nodes[static_cast<std::size_t>(m.node)].name != node || m.column == column) continue;
+        const int c = rec.channel_index(m.column);
+        const std::string there = c >= 0 && !roles_of[static_cast<std::size_t>(c)].empty()
+                                      ? m.column + " is " + roles_of[static_cast<std::size_t>(c)] + " there"
+                                      : m.column + " has no role there";
+        throw std::invalid_argument(rec.source + ": its channel_roles put node '" + node + "' on " +
+                                    (column.empty() ? "no channel" : column) + ", but the model measures it with " +
+                                    m.column + " (" + there + "): the probes are not where the model says; " + advice);
+      }
+    }
+  }
+}
+
 }  // namespace btsm::thermal

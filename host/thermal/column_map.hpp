@@ -23,4 +23,13 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec);
 // node and both files) or as remap_measurements() does.
 std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns);
 
+// A model that already says which column measures which node (a fitted model, scored by validate,
+// heat and residual --use-values) against recordings whose channel_roles say where the probes are:
+// a role-named node measured by a column the roles give to another role (or to none) would be
+// scored against the wrong probe. Nodes named in `columns` (--column) are left to those. Throws
+// std::invalid_argument naming the recording, the node and both columns; `advice` ends the message
+// (what the user can do with the command at hand).
+void check_mapping_agrees_with_roles(const Network& net, const std::vector<Recording>& recs,
+                                     const std::vector<std::string>& columns, const std::string& advice);
+
 }  // namespace btsm::thermal

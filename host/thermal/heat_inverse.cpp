@@ -10,6 +10,7 @@
 #include <nlohmann/json.hpp>
 
 #include <algorithm>
+#include <chrono>
 #include <filesystem>
 #include <cmath>
 #include <limits>
@@ -521,7 +522,21 @@ HeatInverseResult solve_heat_inverse(const InverseProblem& p, const HeatInverseO
   const Prepared pr = prepare(p, o);
   bool est = false;
   const double sigma = resolve_sigma(p, o, est);
-  auto eval = [&](double a) { return smooth(pr, o, a, sigma, false).point; };
+  const auto started = std::chrono::steady_clock::now();
+  auto last_report = started;
+  int evaluated = 0;
+  const std::string of_total = o.rule == AlphaRule::MonteCarlo ? std::string() : " of " + std::to_string(o.alpha_points);
+  auto eval = [&](double a) {
+    const AlphaPoint pt = smooth(pr, o, a, sigma, false).point;
+    ++evaluated;
+    const auto now = std::chrono::steady_clock::now();
+    if (o.progress && now - last_report > std::chrono::seconds(5)) {
+      last_report = now;
+      o.progress("alpha scan: " + std::to_string(evaluated) + of_total + " points, " +
+                 std::to_string(std::chrono::duration_cast<std::chrono::seconds>(now - started).count()) + " s");
+    }
+    return pt;
+  };
   std::vector<AlphaPoint> scan;
   double chosen = 0;
   int mc_evals = 0;

@@ -17,6 +17,12 @@
 namespace btsm::thermal {
 namespace {
 
+std::string parameter_list(const Network& net) {
+  std::string out;
+  for (const auto& p : net.params) out += (out.empty() ? "" : ", ") + p.name;
+  return out.size() > 300 ? out.substr(0, 300) + "..." : out;  // names are checked for control characters
+}
+
 std::string value_text(double v) {
   char buf[32];
   std::snprintf(buf, sizeof buf, "%.6g", v);
@@ -75,6 +81,9 @@ std::string model_problems(const Network& net, const Eigen::VectorXd& params) {
 FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
   // The other JSON files the tool writes, given where a fit result belongs, are named for what they
   // are: "needs 'network'" alone sends a user looking for a field a reduced model never has.
+  if (j.is_object() && j.contains("format") && !j.at("format").is_string())
+    throw std::invalid_argument(src + ": \"format\" is " + io::json_excerpt(j.at("format")) + ", not the string '" +
+                                kFittedModelFormat + "' a fitted model carries");
   if (j.is_object() && j.contains("format") && j.at("format").is_string()) {
     const std::string format = j.at("format").get<std::string>();
     if (format.rfind("btsm-reduced-model", 0) == 0)
@@ -91,6 +100,13 @@ FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
   m.params.resize(m.network.param_count());
   m.sigma = Eigen::VectorXd::Constant(m.network.param_count(), std::numeric_limits<double>::quiet_NaN());
   const auto& pv = j.at("parameters");
+  if (!pv.is_object()) throw std::invalid_argument(src + ": \"parameters\" must be an object of name: value");
+  // A value for no parameter of the network is a typo or a model edited for another network: the
+  // parameter meant keeps its old value while the file looks changed.
+  for (const auto& [name, value] : pv.items())
+    if (m.network.param_index(name) < 0)
+      throw std::invalid_argument(src + ": parameters: " + io::json_excerpt(name) + " is no parameter of the network (its parameters: " +
+                                  parameter_list(m.network) + ")");
   for (int i = 0; i < m.network.param_count(); ++i) {
     const std::string& name = m.network.params[static_cast<std::size_t>(i)].name;
     if (!pv.contains(name) || !pv.at(name).is_number())

@@ -21,13 +21,6 @@ std::string trimmed(const std::string& s) {
   throw io::InputError(rec.source + ": metadata '# " + key + "': " + what);
 }
 
-// Role byte of a name, -1 for the "unknown" that `btsm record` writes for a role byte it does not know.
-int role_of_name(const std::string& name) {
-  for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r)
-    if (name == wire::channel_role_name(r)) return r;
-  return -1;
-}
-
 // The value of a line that must say one thing: given twice with different values, the first would
 // win silently (the reader keeps every line; an edited file can hold the old one and a new one).
 std::string single_value(const Recording& rec, const char* key) {
@@ -57,7 +50,7 @@ std::vector<std::pair<std::string, std::string>> channel_roles(const Recording& 
     if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
       bad(rec, kKey, "entry '" + item + "' is not COLUMN=ROLE (e.g. T1=rear_bearing)");
     const std::string column = trimmed(item.substr(0, eq)), role = trimmed(item.substr(eq + 1));
-    const int r = role_of_name(role);
+    const int r = wire::channel_role_from_name(role.c_str());  // -1 also for the "unknown" `btsm record` writes
     if (r < 0 && role != "unknown") {
       std::string known;
       for (uint8_t k = 0; k < wire::kChannelRoleCount; ++k) known += std::string(k ? ", " : "") + wire::channel_role_name(k);
@@ -78,7 +71,12 @@ std::vector<std::pair<std::string, std::string>> channel_roles(const Recording& 
 std::string ambient_channel(const Recording& rec) {
   static const char* kKey = "ambient_channel";
   const std::string ch = trimmed(single_value(rec, kKey));
-  if (ch.empty()) return ch;
+  if (ch.empty()) {
+    // "# ambient_channel:" with nothing after it dropped the ambient from the model's channel map
+    for (const auto& [k, v] : rec.meta)
+      if (k == kKey) bad(rec, kKey, "is empty: name the ambient channel (T1..T5), or delete the line if the module has none");
+    return ch;
+  }
   if (!(ch.size() == 2 && ch[0] == 'T' && ch[1] >= '1' && ch[1] <= '5'))
     bad(rec, kKey, "'" + ch + "' is not a module channel (T1..T5)");
   for (const auto& [column, role] : channel_roles(rec)) {
@@ -89,6 +87,14 @@ std::string ambient_channel(const Recording& rec) {
 }
 
 void check_recording_metadata(const Recording& rec) {
+  // A key the tool acts on, written in another case, would be read as an unknown key and ignored:
+  // the error would come later, as a missing column or an unmeasured node, far from its cause.
+  for (const auto& [k, v] : rec.meta) {
+    std::string lower = k;
+    for (char& c : lower) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+    for (const char* known : {"channel_roles", "ambient_channel", "boundary_columns", "event_columns"})
+      if (lower == known && k != known) bad(rec, k, std::string("keys are lower case: write '# ") + known + ":'");
+  }
   check_declared_columns(rec);
   (void)channel_roles(rec);
   (void)ambient_channel(rec);

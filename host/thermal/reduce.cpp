@@ -14,9 +14,11 @@
 #include <fmt/core.h>
 
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 #include <cstdio>
 #include <stdexcept>
+#include <utility>
 
 namespace btsm::thermal {
 namespace {
@@ -240,6 +242,27 @@ std::vector<std::pair<double, double>> duty_segments(const ReduceOptions& o, dou
   return prof;
 }
 
+namespace {
+// Reports "<what>: N %" through ReduceOptions::progress at most every 5 s, the first after 5 s.
+class ThrottledProgress {
+ public:
+  ThrottledProgress(const std::function<void(const std::string&)>& sink, std::string what)
+      : sink_(sink), what_(std::move(what)), last_(std::chrono::steady_clock::now()) {}
+  void at(double fraction) {
+    if (!sink_) return;
+    const auto now = std::chrono::steady_clock::now();
+    if (now - last_ < std::chrono::seconds(5)) return;
+    last_ = now;
+    sink_(fmt::format("{}: {:.0f} %", what_, 100.0 * fraction));
+  }
+
+ private:
+  const std::function<void(const std::string&)>& sink_;
+  std::string what_;
+  std::chrono::steady_clock::time_point last_;
+};
+}  // namespace
+
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& o) {
   if (o.speeds_rpm.empty()) throw std::invalid_argument("reduce: give at least one operating speed");
   if (net.has_inputs())
@@ -404,9 +427,12 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     init_at_ambient(sq, amb_mk);
     const bool quantized_ok = out.quantize_status.ok();
     DeviationSummary& dev = out.deviation;
+    ThrottledProgress progress(o.progress, "checking the module model over the deviation profile");
+    double simulated = 0;
     for (const auto& seg : profile) {
       const long steps = std::lround(seg.second / dt);
-      for (long k = 0; k < steps; ++k) {
+      for (long k = 0; k < steps; ++k, simulated += dt) {
+        progress.at(simulated / total);
         double pd[kModelChannels];
         int32_t pq[kModelChannels];
         step(fm, sd, seg.first, o.test_ambient_c, pd);
@@ -450,9 +476,11 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     ReducedModelState st;
     init_at_ambient(st, static_cast<int32_t>(std::lround(o.test_ambient_c * 1000.0)));
     double t = 0;
+    ThrottledProgress progress(o.progress, "checking the module model over the duty cycle");
     for (const auto& seg : prof) {
       const long steps = std::lround(seg.second / dt);
       for (long k = 0; k < steps; ++k, t += dt) {
+        progress.at(t / total);
         const double amb = o.test_ambient_c + std::sin(2 * M_PI * t / (8 * 3600.0));
         int32_t pq[5];
         step(out.quantized, st, static_cast<uint16_t>(seg.first), static_cast<int32_t>(std::lround(amb * 1000)), pq);

@@ -30,6 +30,7 @@
 #include <nlohmann/json.hpp>
 
 #include <array>
+#include <functional>
 #include <string>
 #include <vector>
 
@@ -77,6 +78,10 @@ struct ReduceOptions {
   double design_heat_w = 10.0;                    // W, the extra heat the detector is designed to catch soonest
   bool carriers = true;                           // let a channel ride on a slower channel's model where that
                                                   // lowers its duty-cycle error by >= 10 % (reduce_carrier.cpp)
+  // Told where a long reduction is ("carriers: channel pair 3 of 12", "checking the module model
+  // over the deviation profile: 40 %") at most every ~5 s; a small dt_s makes these minutes long.
+  // Nothing for a reduction that ends sooner.
+  std::function<void(const std::string&)> progress;
 };
 
 // A channel's first-order model in physical terms (what `reduce` prints and the JSON holds).

@@ -28,7 +28,10 @@
 
 #include <Eigen/LU>
 
+#include <fmt/core.h>
+
 #include <algorithm>
+#include <chrono>
 #include <cmath>
 
 namespace btsm::thermal {
@@ -225,10 +228,20 @@ void fit_carriers(const Network& net, const Eigen::VectorXd& params, const Reduc
   // best[j][h]: channel j's best candidate on carrier h -- a grid of shares, then golden section
   // around the grid's best.
   std::array<std::array<Candidate, 5>, 5> best;
+  // Each pair costs a few dozen duty-cycle runs: minutes at a small dt, so say where it is.
+  int pairs = 0, done = 0;
+  for (int j = 0; j < 5; ++j)
+    for (int h = 0; h < 5; ++h) pairs += h != j && o.channel_node[static_cast<std::size_t>(j)] >= 0 && o.channel_node[static_cast<std::size_t>(h)] >= 0;
+  auto last_report = std::chrono::steady_clock::now();
   for (int j = 0; j < 5; ++j) {
     if (o.channel_node[static_cast<std::size_t>(j)] < 0) continue;
     for (int h = 0; h < 5; ++h) {
       if (o.channel_node[static_cast<std::size_t>(h)] < 0 || h == j) continue;
+      if (const auto now = std::chrono::steady_clock::now(); o.progress && now - last_report > std::chrono::seconds(5)) {
+        last_report = now;
+        o.progress(fmt::format("carriers: channel pair {} of {}", done + 1, pairs));
+      }
+      ++done;
       Candidate& b = best[static_cast<std::size_t>(j)][static_cast<std::size_t>(h)];
       int arg = 0;
       for (int s = 1; s <= kShares; ++s) {

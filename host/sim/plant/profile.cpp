@@ -27,8 +27,20 @@ double parse_number(const std::string& text, const std::string& what) {
   return *v;
 }
 
-// Splits on commas and white space, dropping empty items.
-std::vector<std::string> split_items(const std::string& s) {
+// Splits on commas and white space, dropping empty items. White space around '@' belongs to the
+// segment ("1m @ 6000" is 1m@6000, not three items).
+std::vector<std::string> split_items(const std::string& text) {
+  std::string s;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    const bool blank = c == ' ' || c == '\t';
+    if (blank && !s.empty() && s.back() == '@') continue;  // after '@'
+    if (blank) {
+      const auto next = text.find_first_not_of(" \t", i);
+      if (next != std::string::npos && text[next] == '@') continue;  // before '@'
+    }
+    s += c;
+  }
   std::vector<std::string> out;
   std::string cur;
   for (char c : s) {

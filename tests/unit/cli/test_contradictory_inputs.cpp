@@ -80,6 +80,31 @@ TEST(Metadata, ChannelRolesThatContradictAreRefusedNamingTheChannels) {
   EXPECT_TRUE(mentions(fitted, "shaft=T5")) << fitted.err;
 }
 
+// A recording whose channel_roles put the bearings on other channels than the model was fitted
+// with (probes re-mounted, or a swapped cable noted in the header) was scored node by node against
+// the wrong probes, exit 0: validate, heat and residual with the model's own values refuse it,
+// naming the node and both channels. The recording that agrees still passes.
+TEST(Metadata, ProbesElsewhereThanTheModelSaysAreRefusedWhereAModelIsScored) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("swap.csv"), with_meta("# channel_roles: T1=front_bearing,T2=housing,T3=rear_bearing,T4=shaft,T5=ambient\n"));
+  write_text(d.file("noshaft.csv"), with_meta("# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=spare,T5=ambient\n"));
+  write_text(d.file("agree.csv"), with_meta("# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=shaft,T5=ambient\n"));
+  write_text(d.file("check.csv"), "# source: check\n" + with_meta("# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=shaft,T5=ambient\n", "T1,T2,T3,T4", 240));
+  const std::string swapped = "its channel_roles put node 'front_bearing' on T1, but the model measures it with T3 (T3 is rear_bearing there)";
+  expect_refusals(d, {{"validate model.json swap.csv", swapped},
+                      {"heat model.json swap.csv", swapped},
+                      {"residual --network model.json --use-values --fit swap.csv --check check.csv", swapped},
+                      {"validate model.json noshaft.csv", "put node 'shaft' on no channel, but the model measures it with T4 (T4 is spare there)"}});
+  const CliResult ok = run_btsm(d, "validate model.json agree.csv");
+  EXPECT_EQ(ok.code, 0) << ok.err;
+  // --column says which, as for fit: the user's word over the header's.
+  const CliResult said = run_btsm(d, "residual --network model.json --use-values --fit swap.csv --check check.csv "
+                                      "--column rear_bearing=T1 --column front_bearing=T3 --effects sensor_lag --threads 1", 300);
+  EXPECT_EQ(said.code, 0) << said.err;
+  EXPECT_TRUE(mentions(said, "rear_bearing=T1 front_bearing=T3")) << said.err;
+}
+
 // The same recording twice was fitted with double weight (sigmas understated); residual scored its
 // "held-out" check on the fit recording itself.
 TEST(Repeats, TheSameRecordingTwiceIsRefused) {

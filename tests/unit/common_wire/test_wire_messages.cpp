@@ -277,7 +277,11 @@ TEST(WireMessages, ConfigKeysRangesDefaultsAndCodec) {
   for (uint8_t a = 0; a < kChannelRoleCount; ++a) {
     ASSERT_NE(channel_role_name(a), nullptr) << int(a);
     for (uint8_t b = 0; b < a; ++b) EXPECT_STRNE(channel_role_name(a), channel_role_name(b));
+    EXPECT_EQ(channel_role_from_name(channel_role_name(a)), a);  // the names read back as their role
   }
+  EXPECT_EQ(channel_role_from_name("unknown"), -1);
+  EXPECT_EQ(channel_role_from_name("Shaft"), -1);
+  EXPECT_EQ(channel_role_from_name(""), -1);
   EXPECT_STREQ(channel_role_name(static_cast<uint8_t>(ChannelRole::Shaft)), "shaft");
   EXPECT_TRUE(config_value_valid(channel_role_key(4), static_cast<int32_t>(ChannelRole::Shaft)));
   EXPECT_FALSE(config_value_valid(channel_role_key(4), kChannelRoleCount));

@@ -1,0 +1,128 @@
+// What the second hostile-input probe (27 Nov) found accepted too loosely: a value or a file that
+// means something other than it seems, taken with exit 0 or refused with a message no user can
+// act on. Each is now refused naming the option, file or field; the honest form beside it passes.
+#include "cli_run.hpp"
+#include "model_fixture.hpp"
+#include "refusals.hpp"
+
+#include <gtest/gtest.h>
+
+#include <string>
+
+namespace btsm::test {
+namespace {
+
+// Options: the same node twice as two unknowns, --alpha ignored by a rule that picks its own, a
+// negative BIC margin that accepts any effect, hex or a doubled comma in a number list, a seed
+// beyond 64 bits saturated, an RFCOMM channel Bluetooth does not have, and CLI11's 300-digit
+// "not in range 0.000000 to 1797...".
+TEST(LooseInputs, OptionsOutsideTheirMeaningAreRefused) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(200));
+  write_text(d.file("check.csv"), "# source: check\n" + recording_csv(240));
+  write_text(d.file("a_file"), "not a directory\n");
+  expect_refusals(d, {{"heat model.json rec.csv --nodes housing,housing", "node 'housing' is listed twice"},
+                      {"heat model.json rec.csv --alpha 5", "--alpha is used only with --alpha-rule fixed"},
+                      {"heat model.json rec.csv --out a_file", "--out a_file: exists and is not a directory"},
+                      {"residual --preset spindle4 --fit rec.csv --check check.csv --bic-margin -1", "--bic-margin"},
+                      {"residual --preset spindle4 --fit rec.csv --check check.csv --report a_file",
+                       "--report a_file: exists and is not a directory"},
+                      {"fit rec.csv --preset spindle4 --out m.json --iterations 0", "not in range 1 to 1000000"},
+                      {"fit rec.csv --preset spindle4 --out m.json --sum-c 0", "must be > 0, got 0"},
+                      {"reduce model.json --speeds 2000,4000, --out r.json", "an empty entry"},
+                      {"reduce model.json --speeds 2000,0x1000 --out r.json", "'0x1000' is not a number"},
+                      {"rtd r2t 0x3e8", "'0x3e8' is not a number"},
+                      {"rtd r2t inf", "'inf' is not a number"},
+                      {"sim-module --no-wait --duration 1s --pty p --seed 99999999999999999999", "beyond the range of whole numbers"},
+                      {"info --rfcomm 00:11:22:33:44:55 --rfcomm-channel 0", "--rfcomm-channel"},
+                      {"info --port /nonexistent/tty --timeout 0", "--timeout"},
+                      {"keys import 0000bee0 " + std::string(64, '0'), "all 00 bytes"},
+                      {"keys import 0000bee0 " + std::string(64, 'f'), "all FF bytes"}});
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+  // What a user means by spaces is taken: a speed list with spaces, a profile with spaces at '@'.
+  const CliResult spaced = run_btsm(d, "reduce model.json --speeds \" 2000 , 4000\" --force --out r.json", 300);
+  EXPECT_EQ(spaced.code, 0) << spaced.err;
+  const CliResult rtd = run_btsm(d, "rtd r2t \" 1000 \"");
+  EXPECT_EQ(rtd.code, 0) << rtd.err;
+  EXPECT_EQ(rtd.out, "0.0000\n");
+  const CliResult sim = run_btsm(d, "sim-module --no-wait --duration 2s --pty p --profile \" 1s @ 6000 , 1s@0 \"");
+  EXPECT_EQ(sim.code, 0) << sim.err;
+}
+
+// JSON: a key twice in one object (the parser kept the last silently), a "format" that is no
+// string, a value for a parameter the network does not have (the one meant kept its old value).
+TEST(LooseInputs, ModelFilesThatSayTwoThingsOrOtherThingsAreRefused) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  const std::string model = spindle4_model_json();
+  write_text(d.file("model.json"), model);
+  std::string twice = model;
+  twice.insert(twice.find('{') + 1, "\"format\": \"btsm-thermal-model-1\",");
+  twice.insert(twice.find('{') + 1, "\"format\": \"btsm-thermal-model-1\",");
+  write_text(d.file("twice.json"), twice);
+  nlohmann::json j = nlohmann::json::parse(model);
+  j["format"] = 1;
+  write_text(d.file("format1.json"), j.dump(2));
+  j["format"] = nullptr;
+  write_text(d.file("formatnull.json"), j.dump(2));
+  j = nlohmann::json::parse(model);
+  j["parameters"]["bogus"] = 1.0;
+  write_text(d.file("bogus.json"), j.dump(2));
+  nlohmann::json net = j["network"];
+  net["nodes"][0]["name"] = "first";
+  std::string net_twice = net.dump();
+  net_twice.insert(net_twice.find("\"name\":\"first\"") + 1, "name\":\"second\",\"");
+  write_text(d.file("net_twice.json"), net_twice);
+  expect_refusals(d, {{"validate twice.json rec.csv", "twice.json: key \"format\" is given twice in one object"},
+                      {"fit rec.csv --network net_twice.json --out m.json", "key \"nodes[].name\" is given twice"},
+                      {"validate format1.json rec.csv", "\"format\" is 1, not the string 'btsm-thermal-model-1'"},
+                      {"heat formatnull.json rec.csv", "\"format\" is null"},
+                      {"validate bogus.json rec.csv", "parameters: \"bogus\" is no parameter of the network"}});
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+}
+
+// flash-model: a blob given twice (hex and file), a blob that is no string, a fitted model where
+// the reduced one belongs, a scheduled_model field that is no number (the consistency check
+// skipped it), all taken or misnamed before.
+TEST(LooseInputs, AReducedModelFileIsReadStrictly) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  const CliResult r = run_btsm(d, "reduce model.json --speeds 4000,6000 --force --out r.json --blob m.bin", 300);
+  ASSERT_EQ(r.code, 0) << r.err;
+  const nlohmann::json reduced = nlohmann::json::parse(read_text(d.file("r.json")));
+  auto variant = [&](const std::string& name, const std::function<void(nlohmann::json&)>& edit) {
+    nlohmann::json j = reduced;
+    edit(j);
+    write_text(d.file(name), j.dump(2));
+  };
+  variant("both.json", [](nlohmann::json& j) { j["blob_file"] = "m.bin"; });
+  variant("number.json", [](nlohmann::json& j) { j["blob_hex"] = 123; });
+  variant("dt.json", [](nlohmann::json& j) { j["scheduled_model"]["dt_ms"] = "5000"; });
+  variant("fitted.json", [](nlohmann::json& j) { j["format"] = "btsm-thermal-model-1"; });
+  expect_refusals(d, {{"flash-model both.json --port /nonexistent/tty", "gives the blob twice (\"blob_hex\" and \"blob_file\")"},
+                      {"flash-model number.json --port /nonexistent/tty", "\"blob_hex\" is 123, not a string"},
+                      {"flash-model dt.json --port /nonexistent/tty", "dt_ms is \"5000\", not a number"},
+                      {"flash-model fitted.json --port /nonexistent/tty", "a fitted model from `btsm fit`: reduce it first"},
+                      {"flash-model model.json --port /nonexistent/tty", "a fitted model from `btsm fit`"}});
+  // The file reduce wrote goes as far as the missing port.
+  const CliResult honest = run_btsm(d, "flash-model r.json --port /nonexistent/tty");
+  EXPECT_EQ(honest.code, 3) << honest.err;
+}
+
+// Metadata forms: "# ambient_channel:" with nothing after it dropped the ambient from the fitted
+// model's channel map; "# Channel_Roles:" was an unknown key, ignored, and the error came later
+// as a missing column.
+TEST(LooseInputs, MetadataLinesThatWouldBeIgnoredAreRefused) {
+  ScratchDir d;
+  const std::string roles = "T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft\n";
+  write_text(d.file("empty.csv"), "# channel_roles: " + roles + "# ambient_channel:\n" + recording_csv(200));
+  write_text(d.file("case.csv"), "# Channel_Roles: " + roles + recording_csv(200));
+  expect_refusals(d, {{"fit empty.csv --preset spindle4 --out m.json", "'# ambient_channel': is empty"},
+                      {"fit case.csv --preset spindle4 --out m.json", "keys are lower case: write '# channel_roles:'"}});
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+}
+
+}  // namespace
+}  // namespace btsm::test
