@@ -247,7 +247,10 @@ void register_heat_commands(CLI::App& app) {
         args->alpha_max = std::stod(v[1]);
         return true;
       }, "Search range MIN MAX of alpha [K^2/W^2] (default 1e-10 1e3)")->expected(2);
-  cmd->add_option("--alpha-points", args->alpha_points, "Grid points of the alpha scan (default 40)");
+  // 1000 log-spaced points over 13 decades are 3 % apart, finer than any rule can tell; each
+  // point is one smoother run (seconds on a large network), so 100,000 ran for days.
+  cmd->add_option("--alpha-points", args->alpha_points, "Grid points of the alpha scan, 3..1000 (default 40)")
+      ->check(CLI::Range(3, 1000));
   // Below 10 uK (the AD7794's noise is ~1 mK) the weights of the inverse reach 1e10/K and its
   // normal equations lose every digit: --noise 1e-7 gave 2.5e80 K residuals with exit 0.
   cmd->add_option("--noise", args->noise_k, "Measurement noise sigma [K], at least 1e-5 (default: estimated from the data)")

@@ -24,6 +24,7 @@ TEST(LooseInputs, OptionsOutsideTheirMeaningAreRefused) {
   write_text(d.file("a_file"), "not a directory\n");
   expect_refusals(d, {{"heat model.json rec.csv --nodes housing,housing", "node 'housing' is listed twice"},
                       {"heat model.json rec.csv --alpha 5", "--alpha is used only with --alpha-rule fixed"},
+                      {"heat model.json rec.csv --alpha-points 100000", "--alpha-points"},
                       {"heat model.json rec.csv --out a_file", "--out a_file: exists and is not a directory"},
                       {"residual --preset spindle4 --fit rec.csv --check check.csv --bic-margin -1", "--bic-margin"},
                       {"residual --preset spindle4 --fit rec.csv --check check.csv --report a_file",
