@@ -23,6 +23,11 @@ void register_demo_commands(CLI::App& app) {
   cmd->add_option("--effect", opts->effect, "hidden plant effect, as `btsm sim-module --effect`")->capture_default_str();
   cmd->add_flag("--quick", opts->quick, "shorter identification and production phases (for tests)");
   cmd->callback([opts] {
+    try {
+      demo::check_demo_options(*opts);
+    } catch (const std::invalid_argument& e) {
+      throw CommandError(kExitUsage, e.what());
+    }
     const demo::DemoSummary s = demo::run_demo(*opts);
     if (!s.ok) throw CommandError(kExitFailure, "demo failed at " + s.failure);
     std::cout << fmt::format("demo finished in {:.0f} s; report: {}/index.html\n", s.wall_s, opts->out_dir);

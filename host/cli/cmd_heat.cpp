@@ -161,6 +161,13 @@ void run_heat(const HeatArgs& a) {
     throw CommandError(kExitFailure, a.recording + ": the inverse with model " + a.model +
                                          " gives heat that is not a number (the model's terms overflow at this recording's "
                                          "speeds: is the model valid there? check it with btsm validate); nothing written");
+  const double observations = static_cast<double>(p.measured.array().isFinite().count());
+  if (!(r.dof >= 0 && r.dof <= observations))
+    throw CommandError(kExitFailure, fmt::format("{}: the inverse's effective parameters came out {:.6g}, outside 0..{:.0f}: "
+                                                 "its covariance lost precision (a model that does not fit this recording, "
+                                                 "or sample steps far longer than the model's fast modes: check with btsm "
+                                                 "validate); nothing written",
+                                                 a.recording, r.dof, observations));
   if (!a.out_dir.empty()) write_outputs(a, model.network, rec, p, r, cols);
 
   const int m = static_cast<int>(p.source_nodes.size());

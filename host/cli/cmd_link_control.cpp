@@ -112,8 +112,27 @@ void run_set_config(const SetConfigArgs& a) {
     throw CommandError(kExitUsage,
                        fmt::format("{} = {} is outside [{}, {}]", wire::config_key_name(key), value, r.min, r.max));
   auto conn = connect(a.link);
+  // A measured role (a bearing, the housing ...) or the ambient belongs to one channel: a second
+  // ambient was acknowledged silently, and every recording after it was refused by the readers.
+  // Not refused here: swapping two probes' roles passes through a moment where both have one.
+  std::string shared_with;
+  if (key >= wire::kChannelRoleKeyFirst && key <= wire::kChannelRoleKeyLast &&
+      (wire::is_thermal_role(static_cast<uint8_t>(value)) || value == static_cast<int32_t>(wire::ChannelRole::Ambient))) {
+    const uint8_t self = static_cast<uint8_t>(key - wire::kChannelRoleKeyFirst);
+    try {
+      for (uint8_t ch = 0; ch < kChannels; ++ch)
+        if (ch != self && conn.session->get_config(wire::channel_role_key(ch)).value == value)
+          shared_with += (shared_with.empty() ? "" : ", ") + std::to_string(ch + 1);
+    } catch (const link::NackError&) {
+      // firmware without GET_CONFIG cannot be asked; `record` checks the roles it reports
+    }
+  }
   conn.session->set_config(key, value);
   std::cerr << fmt::format("set-config: {} = {} acknowledged\n", wire::config_key_name(key), config_value_text(key, value));
+  if (!shared_with.empty())
+    std::cerr << fmt::format("set-config: WARNING: channel {} has the role {} too; a role belongs to one channel, and "
+                             "`record` refuses to start until each has its own (give channel {} another role)\n",
+                             shared_with, config_value_text(key, value), shared_with);
 }
 
 // One line per key with its range and default, for the help footer.

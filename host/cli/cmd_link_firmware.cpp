@@ -3,6 +3,7 @@
 #include "cmd_link_support.hpp"
 #include "common/device_key.hpp"
 #include "host/io/input_error.hpp"
+#include "host/io/output_file.hpp"
 #include "host/link/device_keys.hpp"
 #include "host/link/firmware_image.hpp"
 
@@ -81,8 +82,13 @@ void write_patched_image(const FlashFirmwareArgs& a, uint32_t id, const DeviceKe
 
 void run_flash_firmware(const FlashFirmwareArgs& a) {
   const uint32_t id = parse_device_id_or_throw(a.device_id);
-  const std::optional<DeviceKey> key = key_for_device(a, id);
   const std::string out = a.out.empty() ? "btsm-fw-" + device_id_text(id) + ".hex" : a.out;
+  try {  // the patched image over its own input would replace the build's image with one module's key
+    io::refuse_output_over_input(out, "--out", {a.hex.empty() ? default_hex_path() : a.hex, a.link.port});
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
+  const std::optional<DeviceKey> key = key_for_device(a, id);
   if (key) write_patched_image(a, id, *key, out);
   else read_application_image(a.hex.empty() ? default_hex_path() : a.hex);  // the dry run still checks the image
   const bool no_link_given = a.link.port.empty() && a.link.usb.empty() && a.link.ble.empty() && a.link.rfcomm.empty();

@@ -136,8 +136,11 @@ void register_monitor(CLI::App& app) {
       "one JSON object per line (with host_time).");
   add_link_options(*c, a->link);
   c->add_flag("--json", a->json, "one JSON object per sample (NDJSON)");
-  c->add_option("--count", a->count, "stop after N samples (0 = until Ctrl-C)")->capture_default_str();
+  c->add_option("--count", a->count, "stop after N samples (0 = until Ctrl-C)")
+      ->check(non_negative_number())  // -1 meant "until Ctrl-C" silently
+      ->capture_default_str();
   c->add_option("--reconnect", a->reconnect, "keep reopening a lost link for this many seconds (0 = exit)")
+      ->check(non_negative_number())
       ->capture_default_str();
   c->callback([a] { guarded([&] { run_monitor(*a); }); });
 }
@@ -171,6 +174,12 @@ void print_record_summary(const RecordArgs& a, const RecordSummary& s) {
 }
 
 void run_record(const RecordArgs& a) {
+  // --out at the module's own port wrote the CSV into the link (frame errors, no recording).
+  try {
+    io::refuse_output_over_input(a.out, "--out", {a.link.port});
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
   install_interrupt_handler();
   auto conn = connect(a.link);
   const ModuleIdentity id = identify(*conn.session);
@@ -218,9 +227,14 @@ void register_record(CLI::App& app) {
       "  btsm record --port /tmp/btsm-sim --out rec.csv --duration 3600");
   add_link_options(*c, a->link);
   c->add_option("--out", a->out, "CSV file to write (an existing one is kept as FILE.~N~)")->required();
-  c->add_option("--duration", a->duration, "stop after this much module time, s (0 = no limit)")->capture_default_str();
-  c->add_option("--samples", a->samples, "stop after this many rows (0 = no limit)")->capture_default_str();
+  c->add_option("--duration", a->duration, "stop after this much module time, s (0 = no limit)")
+      ->check(non_negative_number())  // -1 meant "no limit" silently
+      ->capture_default_str();
+  c->add_option("--samples", a->samples, "stop after this many rows (0 = no limit)")
+      ->check(non_negative_number())
+      ->capture_default_str();
   c->add_option("--reconnect", a->reconnect, "keep reopening a lost link for this many seconds (0 = fail)")
+      ->check(non_negative_number())
       ->capture_default_str();
   c->add_flag("--json", a->json, "print the summary as JSON");
   c->callback([a] { guarded([&] { run_record(*a); }); });

@@ -2,6 +2,8 @@
 #include "host/sim/runner/sim_module.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
+#include "host/io/input_error.hpp"
+#include "host/io/output_file.hpp"
 
 #include <fmt/core.h>
 
@@ -69,12 +71,8 @@ void run_sim(const SimArgs& a) {
       o.plant.start_steady_rpm = a.start_steady_rpm;
     }
     if (a.time_scale == "max") o.time_scale = 0.0;
-    else {
-      size_t used = 0;
-      o.time_scale = std::stod(a.time_scale, &used);
-      if (used != a.time_scale.size() || !(o.time_scale > 0.0))
-        throw std::invalid_argument("--time-scale '" + a.time_scale + "': expected a number > 0 or max");
-    }
+    else if (!parse_decimal(a.time_scale, o.time_scale) || !(o.time_scale > 0.0))
+      throw std::invalid_argument("--time-scale '" + a.time_scale + "': expected a number > 0 (1 = real time) or max");
     o.duration_s = a.duration.empty() ? o.plant.speed.total_duration_s()
                                       : sim::parse_duration_s(a.duration, "--duration");
     if (!(o.duration_s > 0.0)) throw std::invalid_argument("--duration must be > 0");
@@ -84,23 +82,22 @@ void run_sim(const SimArgs& a) {
   } catch (const std::invalid_argument& e) {
     throw CommandError(kExitUsage, e.what());
   }
+  if (a.pty.find_first_not_of(" \t") == std::string::npos)
+    throw CommandError(kExitUsage, "--pty: an empty path (give where the module's pty link goes, e.g. /tmp/btsm-sim)");
+  // The truth CSV and the EEPROM image are written; neither may be a file this run reads or writes otherwise.
+  try {
+    io::refuse_output_over_input(a.truth_out, "--truth-out", {a.profile_file, a.eeprom, a.elf, a.pty});
+    io::refuse_output_over_input(a.eeprom, "--eeprom", {a.profile_file, a.elf, a.pty});
+    if (!a.truth_out.empty() && !a.eeprom.empty() && std::filesystem::path(a.truth_out).lexically_normal() ==
+                                                          std::filesystem::path(a.eeprom).lexically_normal())
+      throw io::InputError("--truth-out and --eeprom name the same file " + a.eeprom + ": each needs its own");
+  } catch (const std::exception& e) {
+    throw CommandError(kExitUsage, e.what());
+  }
   o.pty_path = a.pty;
   o.elf_path = a.elf.empty() ? default_elf_path() : a.elf;
-  if (o.board == sim::BoardKind::Avr && !std::filesystem::exists(o.elf_path))
-    throw CommandError(kExitUsage, "--elf " + o.elf_path + ": no such firmware image (build it, or pass --elf)");
-  if (o.board == sim::BoardKind::Avr) {
-    // simavr loads whatever it is given and the core then "crashes" at its first instruction: a
-    // HEX file, a host binary or a truncated image is named here instead. ELF header: magic at 0,
-    // e_machine (little-endian u16) at 18, EM_AVR = 83.
-    std::ifstream f(o.elf_path, std::ios::binary);
-    unsigned char h[20] = {};
-    const bool read = f && f.read(reinterpret_cast<char*>(h), sizeof h) && !std::filesystem::is_directory(o.elf_path);
-    if (!read || h[0] != 0x7f || h[1] != 'E' || h[2] != 'L' || h[3] != 'F')
-      throw CommandError(kExitUsage, "--elf " + o.elf_path + ": not an ELF file (give the firmware's .elf, not its .hex)");
-    if (h[18] != 83 || h[19] != 0)
-      throw CommandError(kExitUsage, "--elf " + o.elf_path + ": an ELF file for another machine (e_machine " +
-                                         std::to_string(h[18] | (h[19] << 8)) + "), not an AVR image");
-  }
+  if (o.board == sim::BoardKind::Avr)
+    if (const std::string why = sim::avr_elf_problem(o.elf_path); !why.empty()) throw CommandError(kExitUsage, "--elf " + o.elf_path + ": " + why);
   o.truth_csv = a.truth_out;
   o.truth_period_s = a.truth_period_s;
   o.eeprom_path = a.eeprom;

@@ -74,8 +74,16 @@ void run_effect_suite(const SuiteArgs& a) {
                            rep.results.size(), rep.wall_s, a.out);
   // A case the loop gave no answer on is a result of the suite (counted in the table), not a
   // failure of the suite: say which, and exit 0.
+  std::size_t errors = 0;
   for (const auto& r : rep.results)
-    if (r.verdict == "error") std::cerr << "effect-suite: case " << r.id << " gave no answer: " << r.error << "\n";
+    if (r.verdict == "error") {
+      ++errors;
+      std::cerr << "effect-suite: case " << r.id << " gave no answer: " << r.error << "\n";
+    }
+  // ... unless no case gave one: then the suite measured nothing (a bad --residual-arg, a btsm
+  // that does not run), and a table of errors with exit 0 would pass for a result.
+  if (!rep.results.empty() && errors == rep.results.size())
+    throw CommandError(kExitFailure, "no case gave an answer (the first: " + rep.results.front().error + ")");
 }
 
 }  // namespace
@@ -106,8 +114,8 @@ void register_suite_commands(CLI::App& app) {
   cmd->add_option("--btsm", a->btsm, "btsm executable to run `residual` with (default: this one)");
   cmd->add_option("--residual-arg", a->residual_args, "extra argument for every btsm residual (repeatable)")
       ->allow_extra_args(false);
-  cmd->add_flag("--generate-only", a->generate_only, "only write the recordings and truth.json");
-  cmd->add_flag("--score-only", a->score_only, "reuse the recordings in --out, run and score only");
+  auto* gen = cmd->add_flag("--generate-only", a->generate_only, "only write the recordings and truth.json");
+  cmd->add_flag("--score-only", a->score_only, "reuse the recordings in --out, run and score only")->excludes(gen);
   cmd->add_flag("--reuse", a->reuse,
                 "with --score-only: score a case's existing residual.json (newer than its recordings) instead of "
                 "running it again (resumes a suite stopped part-way)");

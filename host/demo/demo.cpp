@@ -1,6 +1,8 @@
 #include "host/demo/demo.hpp"
 
+#include "host/io/output_file.hpp"
 #include "host/sim/plant/faults.hpp"
+#include "host/sim/plant/hidden_effects.hpp"
 #include "host/sim/runner/sim_module.hpp"
 #include "common/wire_messages.hpp"
 #include "host/demo/commission.hpp"
@@ -41,6 +43,18 @@ struct StepFailure : std::runtime_error {
 };
 
 }  // namespace
+
+void check_demo_options(const DemoOptions& opts) {
+  if (!opts.effect.empty()) {
+    sim::HiddenEffects fx;
+    sim::parse_effect(opts.effect, fx);  // throws naming what it does not understand
+  }
+  if (sim::parse_board_kind(opts.board) == sim::BoardKind::Avr) {
+    const std::string elf = opts.elf_path.empty() ? default_elf() : opts.elf_path;
+    if (const std::string why = sim::avr_elf_problem(elf); !why.empty()) throw std::invalid_argument("--elf " + elf + ": " + why);
+  }
+  io::refuse_output_dir_that_is_no_directory(opts.out_dir, "--out");
+}
 
 DemoSummary run_demo(const DemoOptions& opts) {
   DemoSummary summary;

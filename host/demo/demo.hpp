@@ -26,6 +26,11 @@ struct DemoSummary {
   double wall_s = 0;
 };
 
+// Throws std::invalid_argument naming the option when the demo could not run with `opts` (an
+// --effect the plant does not know, an --elf that is no AVR image, an --out that is a file):
+// checked before run_demo() creates the report folder or a key.
+void check_demo_options(const DemoOptions& opts);
+
 DemoSummary run_demo(const DemoOptions& opts);
 
 }  // namespace btsm::demo

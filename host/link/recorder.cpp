@@ -136,6 +136,16 @@ class SensorFaultEpisodes {
 
 RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOptions& opts) {
   RecordSummary sum;
+  // Two channels with one measured role (or two ambients) make a recording every reader refuses
+  // (recording_metadata.hpp): say so before hours are recorded.
+  for (int a = 0; a < kChannels; ++a)
+    for (int b = a + 1; b < kChannels; ++b) {
+      const uint8_t r = id.roles.role[a];
+      if (r != id.roles.role[b] || !(is_thermal_role(r) || r == static_cast<uint8_t>(ChannelRole::Ambient))) continue;
+      throw std::invalid_argument(fmt::format("channels {} and {} both have the role {}: a role belongs to one channel "
+                                              "(set one of them with `btsm set-config channel_role_N ROLE`)",
+                                              a + 1, b + 1, channel_role_name(r)));
+    }
   const int amb = id.roles.ambient_index();
   if (amb < 0)
     throw std::runtime_error("no channel has the ambient role, so ambient_c cannot be recorded: set one with "
@@ -201,6 +211,7 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
     for (const auto& f : sum.sensor_faults)
       tail << "# " << thermal::kSensorFaultKey << ": " << thermal::format_sensor_fault(f) << "\n";
     tail << "# stop_reason: " << sum.stop_reason << "\n";
+    tail.flush();
     if (!tail) throw std::runtime_error("cannot append the summary to " + opts.out_path);
   };
   try {
@@ -260,6 +271,7 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
       std::vector<double> temps;
       for (int c : columns) temps.push_back(mk_to_c(s.temp_mK[c]));
       w.append(time_s, s.speed_rpm, ambient, temps);
+      w.flush();  // every row on disk as it comes: a killed `record` loses nothing it showed, and a full disk fails now
       faults.row(time_s, s, id.roles);
       last_time_s = time_s;
       ++sum.rows;

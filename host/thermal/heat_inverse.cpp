@@ -284,7 +284,11 @@ SmoothOut smooth(const Prepared& pr, const HeatInverseOptions& o, double alpha, 
   out.point.seminorm_w2 = semi;
   out.point.dof = dof;
   const double denom = pr.n_obs - dof;
-  out.point.gcv = denom > 0 ? pr.n_obs * rss / (denom * denom) : std::numeric_limits<double>::infinity();
+  // The trace of an influence matrix lies in [0, N]. Outside it the smoothed covariance has lost
+  // its positive definiteness (long steps against fast modes, a model that does not fit the
+  // recording): such a point's GCV says nothing, and a -566,419 "effective parameters" once won it.
+  const bool dof_valid = dof >= 0 && dof <= pr.n_obs;
+  out.point.gcv = dof_valid && denom > 0 ? pr.n_obs * rss / (denom * denom) : std::numeric_limits<double>::infinity();
   return out;
 }
 

@@ -7,8 +7,10 @@
 #include "host/io/input_file.hpp"
 
 #include <charconv>
+#include <cerrno>
 #include <cstdlib>
 #include <cmath>
+#include <cstring>
 #include <fstream>
 #include <limits>
 #include <sstream>
@@ -298,14 +300,18 @@ void RecordingWriter::append(double time_s, double speed_rpm, double ambient_c, 
 void RecordingWriter::flush() {
   if (!file_) return;
   write_header_once();
-  std::fflush(file_);
+  // A full disk (or /dev/full) shows here, not in fputs, which only fills the buffer.
+  if (std::fflush(file_) != 0) throw std::runtime_error(path_ + ": write failed: " + std::strerror(errno));
 }
 
 void RecordingWriter::close() {
   if (!file_) return;
   write_header_once();
-  std::fclose(file_);
+  const bool flushed = std::fflush(file_) == 0;
+  const int err = errno;
+  const bool closed = std::fclose(file_) == 0;
   file_ = nullptr;
+  if (!flushed || !closed) throw std::runtime_error(path_ + ": write failed: " + std::strerror(flushed ? errno : err));
 }
 
 }  // namespace btsm::thermal

@@ -263,6 +263,21 @@ class ThrottledProgress {
 };
 }  // namespace
 
+namespace {
+// The reduction samples each node's response over 5 of its slowest time constants at <= 10 s: a
+// model whose slowest mode is astronomically slow (resistances of 1e300 K/W load, being finite)
+// ran for hours. A spindle's modes are minutes to hours; 1e6 s (11.6 days) is far past them.
+constexpr double kMaxTimeConstantS = 1e6;
+void check_time_constants(const ModalForm& f, double speed_rpm) {
+  const double tau = 1.0 / f.lambda.minCoeff();
+  if (!(tau <= kMaxTimeConstantS))
+    throw std::invalid_argument(fmt::format("reduce: at {:g} rpm the model's slowest time constant is {:.3g} s ({:.3g} days), "
+                                            "beyond the {:g} s a module model can follow: a node all but cut off from "
+                                            "ambient (a resistance or capacitance far out of range?)",
+                                            speed_rpm, tau, tau / 86400, kMaxTimeConstantS));
+}
+}  // namespace
+
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& o) {
   if (o.speeds_rpm.empty()) throw std::invalid_argument("reduce: give at least one operating speed");
   if (net.has_inputs())
@@ -341,6 +356,7 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     const NodeMatrices m = assemble(net, params, speed);
     if (m.source_to_node.cols() == 0) throw std::runtime_error("reduction: the network has no heat sources (inputs)");
     const ModalForm f = modal_form(m);
+    check_time_constants(f, speed);
     SpeedReduction r = balanced(m, f, speed, m.source_to_node);
     r.source_w = m.source_w;
     r.steady_rise_K = steady_rise(m);
@@ -370,6 +386,7 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     const Eigen::VectorXd x_stop = steady_rise(ms);
     const NodeMatrices mc = assemble(net, params, 0.0);
     const ModalForm fc = modal_form(mc);
+    check_time_constants(fc, 0.0);
     // Analysis of the free response as an impulse of C x_stop (reported, as for the speeds).
     out.cooling = balanced(mc, fc, 0.0, mc.capacitance.asDiagonal() * x_stop);
     out.cooling.source_w = Eigen::VectorXd::Zero(1);

@@ -2,7 +2,10 @@
 #include "host/sim/runner/module_board.hpp"
 #include "boards/sim/simavr/simavr_harness.hpp"
 #include "common/device_key.hpp"
+#include "host/io/input_error.hpp"
+#include "host/io/input_file.hpp"
 
+#include <filesystem>
 #include <fstream>
 #include <stdexcept>
 
@@ -74,14 +77,44 @@ std::unique_ptr<ModuleBoard> make_avr_board(const ModuleBoardOptions& opts) {
 }
 
 std::vector<uint8_t> load_eeprom_image(const std::string& path, size_t size) {
-  if (path.empty()) return {};
-  std::ifstream in(path, std::ios::binary);
-  if (!in) return {};
-  std::vector<uint8_t> img((std::istreambuf_iterator<char>(in)), std::istreambuf_iterator<char>());
-  if (img.size() != size)
-    throw std::runtime_error("EEPROM image " + path + " has " + std::to_string(img.size()) +
-                             " bytes, expected " + std::to_string(size));
-  return img;
+  std::error_code ec;
+  if (path.empty() || !std::filesystem::exists(path, ec)) return {};  // a new module: blank EEPROM, saved at the end
+  // Capped, and refusing directories and devices: /dev/zero was read for ever (1 GB in 8 s).
+  const std::string bytes = io::read_input_file(path, size, "module EEPROM image (--eeprom)", io::FileKind::Binary);
+  if (bytes.size() != size)
+    throw io::InputError("--eeprom " + path + ": " + std::to_string(bytes.size()) + " bytes, an EEPROM image has " +
+                         std::to_string(size) + " (give a file this simulator saved, or a new name)");
+  return std::vector<uint8_t>(bytes.begin(), bytes.end());
+}
+
+std::string avr_elf_problem(const std::string& path) {
+  std::error_code ec;
+  if (!std::filesystem::exists(path, ec)) return "no such firmware image (build it, or pass --elf)";
+  if (!std::filesystem::is_regular_file(path, ec)) return "not a regular file";
+  std::string bytes;
+  try {
+    bytes = io::read_input_file(path, 8u << 20, "firmware image", io::FileKind::Binary);
+  } catch (const std::exception& e) {
+    return e.what();
+  }
+  const auto u8 = [&](std::size_t at) { return static_cast<uint32_t>(static_cast<unsigned char>(bytes[at])); };
+  const auto u16 = [&](std::size_t at) { return u8(at) | (u8(at + 1) << 8); };
+  const auto u32 = [&](std::size_t at) { return u16(at) | (u16(at + 2) << 16); };
+  // ELF32 little-endian header: magic, class 1, data 1; e_machine at 18 (EM_AVR = 83), e_phoff at
+  // 28, e_phentsize at 42, e_phnum at 44. Program header: p_offset at 4, p_filesz at 16.
+  if (bytes.size() < 4 || bytes.compare(0, 4, "\x7f" "ELF") != 0) return "not an ELF file (give the firmware's .elf, not its .hex)";
+  if (bytes.size() < 52) return "an ELF file cut short (" + std::to_string(bytes.size()) + " bytes, no complete header)";
+  if (u8(4) != 1 || u8(5) != 1 || u16(18) != 83)
+    return "an ELF file for another machine (e_machine " + std::to_string(u16(18)) + "), not an AVR image";
+  const std::uint64_t phoff = u32(28), phentsize = u16(42), phnum = u16(44);
+  if (phnum == 0 || phentsize < 32 || phoff + phnum * phentsize > bytes.size())
+    return "an ELF file cut short or without program segments (nothing simavr could load)";
+  for (std::uint64_t i = 0; i < phnum; ++i) {
+    const std::size_t ph = static_cast<std::size_t>(phoff + i * phentsize);
+    if (static_cast<std::uint64_t>(u32(ph + 4)) + u32(ph + 16) > bytes.size())
+      return "an ELF file cut short (segment " + std::to_string(i) + " ends past the end of the file)";
+  }
+  return {};
 }
 
 void save_eeprom_image(const std::string& path, const std::vector<uint8_t>& image) {

@@ -54,6 +54,12 @@ std::unique_ptr<ModuleBoard> make_avr_board(const ModuleBoardOptions& opts);
 
 // Raw EEPROM image helpers shared by both boards.
 std::vector<uint8_t> load_eeprom_image(const std::string& path, size_t size);  // empty if no file
+
+// Why `path` is no AVR firmware image simavr can run ("" when it is one): missing, a directory, not
+// an ELF file (a .hex), an ELF for another machine, or cut short (program headers or segments
+// past the end of the file). simavr loads whatever it is given and the core then "crashes" at its
+// first instruction, which names nothing.
+std::string avr_elf_problem(const std::string& path);
 void save_eeprom_image(const std::string& path, const std::vector<uint8_t>& image);
 
 }  // namespace btsm::sim

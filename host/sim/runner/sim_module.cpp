@@ -59,6 +59,8 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
   b.avr_dev_key = opts_.avr_dev_key;
   b.key_record = opts_.key_record;
   board_ = opts_.board == BoardKind::Avr ? make_avr_board(b) : make_native_board(b);
+  // The pty first: a start that fails there must not have truncated an existing --truth-out file.
+  if (!opts_.pty_path.empty()) pty_ = std::make_unique<Pty>(opts_.pty_path);
   if (!opts_.truth_csv.empty()) {
     truth_ = std::make_unique<Truth>();
     std::vector<std::string> cols;
@@ -87,7 +89,6 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
     if (!opts_.plant.effects.events.empty()) w.write_meta("event_columns", join(opts_.plant.effects.event_columns()));
     w.write_meta("columns", "T*, node_* in degC; extra_heat_W_* = heat beyond the paper's model in W");
   }
-  if (!opts_.pty_path.empty()) pty_ = std::make_unique<Pty>(opts_.pty_path);
   write_truth_row();
 }
 
@@ -196,9 +197,12 @@ void SimModule::thread_main() {
         stats_.wall_time_s += std::chrono::duration<double>(Clock::now() - c0).count();
       }
       if (opts_.time_scale > 0.0) {
+        // In slices, so that stop() is heard: at --time-scale 0.001 one chunk is minutes of wall
+        // time, and one sleep_until ignored Ctrl-C and SIGTERM for that long.
         const double ahead = (sim_time_s() - pace_sim) / opts_.time_scale;
-        std::this_thread::sleep_until(pace_wall + std::chrono::duration_cast<Clock::duration>(
-                                                      std::chrono::duration<double>(ahead)));
+        const auto until = pace_wall + std::chrono::duration_cast<Clock::duration>(std::chrono::duration<double>(ahead));
+        while (!stop_ && Clock::now() < until)
+          std::this_thread::sleep_until(std::min(until, Clock::now() + std::chrono::milliseconds(100)));
       }
     }
     std::lock_guard<std::mutex> lk(mu_);

@@ -1,5 +1,7 @@
 #include "host/sim/suite/runner.hpp"
 
+#include "host/io/input_error.hpp"
+#include "host/io/json_input.hpp"
 #include "host/sim/suite/generate.hpp"
 
 #include <fmt/core.h>
@@ -26,14 +28,10 @@ namespace {
 
 using Clock = std::chrono::steady_clock;
 
+// Through the capped, depth- and duplicate-key-checked reader every user file goes through: a
+// hand-edited {"verdict":"none","verdict":"effect"} was scored as a claim.
 nlohmann::json read_json(const fs::path& p) {
-  std::ifstream in(p);
-  if (!in) throw std::runtime_error("cannot open " + p.string());
-  try {
-    return nlohmann::json::parse(in);
-  } catch (const nlohmann::json::exception& e) {
-    throw std::runtime_error(p.string() + ": not valid JSON: " + e.what());
-  }
+  return io::read_json_file(p.string(), 64u << 20, "suite JSON");
 }
 
 // The answer a child writes goes to a part file, renamed over residual.json only when the child
@@ -119,7 +117,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     try {  // every field the scoring reads, checked once: a bad truth.json is named, not a bare key error
       (void)failed_case(truth, "", 0);
     } catch (const nlohmann::json::exception& e) {
-      throw std::runtime_error((dir / "truth.json").string() + ": not a case's truth: " + e.what());
+      throw io::InputError((dir / "truth.json").string() + ": not a case's truth: " + e.what());
     }
     CaseResult r;
     std::error_code rename_error;

@@ -127,3 +127,83 @@ TEST(LooseInputs, MetadataLinesThatWouldBeIgnoredAreRefused) {
 
 }  // namespace
 }  // namespace btsm::test
+
+namespace btsm::test {
+namespace {
+
+// The third probe (27 Nov): files a run writes over what it reads or what was there, inputs read
+// without end, arguments checked only after the work began. Each is refused first (exit 2), and
+// the files named keep their bytes.
+TEST(LooseInputs, TheSimulatorNeitherOverwritesItsInputsNorReadsWithoutEnd) {
+  ScratchDir d;
+  const std::string profile = "30s@6000\n30s@0\n";
+  write_text(d.file("prof.txt"), profile);
+  write_text(d.file("precious.csv"), "keep me\n");
+  write_text(d.file("a_file"), "not a pty\n");
+  write_text(d.file("small.eeprom"), std::string(10, '\xff'));
+  // An ELF header for the AVR announcing a program header the file does not hold.
+  std::string elf(60, '\0');
+  elf.replace(0, 4, "\x7f" "ELF");
+  elf[4] = 1, elf[5] = 1, elf[18] = 83, elf[28] = 52, elf[42] = 32, elf[44] = 1;
+  write_text(d.file("cut.elf"), elf);
+  const std::string sim = "sim-module --no-wait --duration 10s ";
+  expect_refusals(d, {{sim + "--profile-file prof.txt --pty p --truth-out prof.txt", "--truth-out prof.txt is the input prof.txt"},
+                      {sim + "--pty p --truth-out t.csv --eeprom t.csv", "--truth-out and --eeprom name the same file"},
+                      {sim + "--pty p --eeprom /dev/zero", "EEPROM image"},
+                      {sim + "--pty p --eeprom small.eeprom", "10 bytes, an EEPROM image has 1024"},
+                      {sim + "--pty ''", "--pty: an empty path"},
+                      {sim + "--pty p --time-scale fast", "--time-scale 'fast'"},
+                      {sim + "--pty p --board avr --elf cut.elf", "cut short"}},
+                  2, 20);
+  EXPECT_EQ(read_text(d.file("prof.txt")), profile);
+  // A start that fails at the pty leaves an existing truth file as it was.
+  const CliResult r = run_btsm(d, sim + "--pty a_file --truth-out precious.csv", 20);
+  EXPECT_NE(r.code, 0) << r.err;
+  EXPECT_EQ(read_text(d.file("precious.csv")), "keep me\n");
+}
+
+// Negative counts meant "for ever"; --out at the module's port wrote the CSV into the link; a
+// flashed image over its own input replaced the build's image with one module's key.
+TEST(LooseInputs, LinkCommandsRefuseOutputsOverTheirInputs) {
+  ScratchDir d;
+  write_text(d.file("port"), "stands for a module port\n");
+  write_text(d.file("fw.hex"), ":00000001FF\n");
+  expect_refusals(d, {{"monitor --port /nonexistent/tty --count -1", "--count"},
+                      {"record --port /nonexistent/tty --out r.csv --samples -1", "--samples"},
+                      {"record --port /nonexistent/tty --out r.csv --duration -1", "--duration"},
+                      {"record --port port --out port", "--out port is the input port"},
+                      {"flash-firmware --device-id 0000de71 --new-key --hex fw.hex --out fw.hex --dry-run",
+                       "--out fw.hex is the input fw.hex"}});
+  EXPECT_EQ(read_text(d.file("port")), "stands for a module port\n");
+  EXPECT_EQ(read_text(d.file("fw.hex")), ":00000001FF\n");
+}
+
+// Capacitances of 1e300 J/K load (finite, inside widened bounds) and leave modes of ~1e296 s:
+// reduce sampled them every 10 s for hours. It names the time constant at once.
+TEST(LooseInputs, ReduceNamesAModelTooSlowForAModule) {
+  ScratchDir d;
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  for (auto& p : m["network"]["parameters"])
+    if (p["unit"] == "J/K") {  // every capacitance
+      p["max"] = 1e300;
+      m["parameters"][p["name"].get<std::string>()] = 1e300;
+    }
+  write_text(d.file("slow.json"), m.dump(2));
+  expect_refusals(d, {{"reduce slow.json --speeds 4000,6000,8000 --out r.json", "slowest time constant"}}, 2, 60);
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+}
+
+// The demo checked --effect, --elf and --out only after it had made the report folder and a key;
+// effect-suite took two contradicting modes and a hand-edited answer with a key twice.
+TEST(LooseInputs, DemoAndSuiteCheckTheirArgumentsFirst) {
+  ScratchDir d;
+  write_text(d.file("a_file"), "x\n");
+  expect_refusals(d, {{"demo --out rep --effect nosuch:1", "nosuch"},
+                      {"demo --out rep --board avr --elf a_file", "not an ELF file"},
+                      {"demo --out a_file --board native", "--out a_file: exists and is not a directory"},
+                      {"effect-suite --out s --generate-only --score-only", "excludes"}});
+  EXPECT_FALSE(file_exists(d.file("rep")));
+}
+
+}  // namespace
+}  // namespace btsm::test

@@ -447,6 +447,18 @@ TEST(LinkCli, GetConfigReadsWhatSetConfigWroteOnTheSimulatedModule) {
   r = run(home, "get-config" + port + " no_such_key");
   EXPECT_EQ(r.code, 2);
   EXPECT_NE(r.err.find("no_such_key"), std::string::npos) << r.err;
+  // A second ambient was acknowledged silently, and every recording after it was refused by the
+  // readers: set-config warns (a swap of two probes passes through such a moment), record refuses.
+  r = run(home, "set-config" + port + " channel_role_2 ambient");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("WARNING: channel 4 has the role ambient too"), std::string::npos) << r.err;
+  r = run(home, "record" + port + " --out " + home.path + "/two_ambients.csv --samples 3");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("channels 2 and 4 both have the role ambient"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(home.path + "/two_ambients.csv"));
+  r = run(home, "set-config" + port + " channel_role_2 housing");
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("WARNING"), std::string::npos) << r.err;
   sim.stop();
   EXPECT_TRUE(sim.error().empty()) << sim.error();
 }

@@ -194,3 +194,22 @@ TEST(SimModuleLink, RecordingSaysWhichFaultEmptiedACell) {
     EXPECT_TRUE(!in_open || empty) << rec.time_s[k];
   }
 }
+
+// At --time-scale 0.001 one 0.25 s plant step is 250 s of wall time, slept in one piece: Ctrl-C
+// and SIGTERM said "stopping" and the run went on for minutes. stop() is heard within a slice.
+TEST(SimModuleLink, StopsPromptlyWhenRunningFarSlowerThanRealTime) {
+  sim::SimModuleOptions o;
+  o.board = sim::BoardKind::Native;
+  o.plant.speed = sim::SpeedProfile::parse("1h@6000");
+  o.time_scale = 0.001;
+  o.wait_for_host = false;
+  sim::SimModule m(o);
+  m.start();
+  std::this_thread::sleep_for(std::chrono::milliseconds(300));
+  ASSERT_TRUE(m.running());
+  const auto t0 = std::chrono::steady_clock::now();
+  m.stop();
+  const double waited = std::chrono::duration<double>(std::chrono::steady_clock::now() - t0).count();
+  EXPECT_LT(waited, 2.0);
+  EXPECT_FALSE(m.running());
+}
