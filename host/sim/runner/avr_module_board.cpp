@@ -114,6 +114,16 @@ std::string avr_elf_problem(const std::string& path) {
     if (static_cast<std::uint64_t>(u32(ph + 4)) + u32(ph + 16) > bytes.size())
       return "an ELF file cut short (segment " + std::to_string(i) + " ends past the end of the file)";
   }
+  // simavr finds the flash image through the section headers (e_shoff at 32, e_shentsize at 46,
+  // e_shnum at 48; a section's sh_type at 4, sh_offset at 16, sh_size at 20; NOBITS = 8 has none).
+  const std::uint64_t shoff = u32(32), shentsize = u16(46), shnum = u16(48);
+  if (shnum == 0 || shentsize < 40 || shoff + shnum * shentsize > bytes.size())
+    return "an ELF file with its section headers missing or past the end of the file";
+  for (std::uint64_t i = 0; i < shnum; ++i) {
+    const std::size_t sh = static_cast<std::size_t>(shoff + i * shentsize);
+    if (u32(sh + 4) != 8 && static_cast<std::uint64_t>(u32(sh + 16)) + u32(sh + 20) > bytes.size())
+      return "an ELF file cut short (section " + std::to_string(i) + " ends past the end of the file)";
+  }
   return {};
 }
 
