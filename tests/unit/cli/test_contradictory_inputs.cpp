@@ -284,10 +284,7 @@ TEST(Inputs, DetectorBandsNeedAnHourOfRunning) {
 // flashed as the blob said: the table a user checked was not what the module got.
 TEST(Inputs, AReducedModelWhoseBlobContradictsItsTableIsNotFlashed) {
   ScratchDir d;
-  write_text(d.file("model.json"), spindle4_model_json());
-  const CliResult r = run_btsm(d, "reduce model.json --speeds 4000,6000 --force --out r.json", 300);
-  ASSERT_EQ(r.code, 0) << r.err;
-  nlohmann::json j = nlohmann::json::parse(read_text(d.file("r.json")));
+  nlohmann::json j = reduced_spindle4_json(d);
   const CliResult honest = run_btsm(d, "flash-model r.json --port /nonexistent/tty");
   EXPECT_FALSE(mentions(honest, "contradicts")) << honest.err;
   j["scheduled_model"]["breakpoints"][1]["speed_rpm"] = 4500;

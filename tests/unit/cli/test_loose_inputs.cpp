@@ -89,10 +89,7 @@ TEST(LooseInputs, ModelFilesThatSayTwoThingsOrOtherThingsAreRefused) {
 // skipped it), all taken or misnamed before.
 TEST(LooseInputs, AReducedModelFileIsReadStrictly) {
   ScratchDir d;
-  write_text(d.file("model.json"), spindle4_model_json());
-  const CliResult r = run_btsm(d, "reduce model.json --speeds 4000,6000 --force --out r.json --blob m.bin", 300);
-  ASSERT_EQ(r.code, 0) << r.err;
-  const nlohmann::json reduced = nlohmann::json::parse(read_text(d.file("r.json")));
+  const nlohmann::json reduced = reduced_spindle4_json(d);
   auto variant = [&](const std::string& name, const std::function<void(nlohmann::json&)>& edit) {
     nlohmann::json j = reduced;
     edit(j);
