@@ -10,6 +10,14 @@
 // channel's |e(s)| stays within `drift_fraction` of the drift on that side: the rest of the drift
 // is left for the transients, which the band calibration measured at the breakpoints and their
 // midpoints only.
+//
+// The drift alone is not the test when it is calibrated: raised to cover a large steady error
+// (--calibrate-bands), it hides the error and a fault with it. With `design_heat_w` > 0 a speed is
+// covered only when that much more heat at a channel's node (its steady rise X(s) by the network)
+// would still ALARM within `design_alarm_within_min`: the lasting residual e(s) + X(s) beyond the
+// drift must accumulate the ALARM evidence in that time. Where X(s) alone is too small for that
+// (bands set wider than the fault), the error is not to blame: `bands_hide_fault_K` says so apart. A model 3.7 K above a healthy bearing at
+// 3000 rpm (breakpoints 4000, 6000, 8000) hid a 10 W fault there for hours behind a raised drift.
 #include "network.hpp"
 #include "reduce.hpp"
 
@@ -26,6 +34,8 @@ struct SpeedCoverageOptions {
   double step_rpm = 25.0;        // rpm, spacing of the speeds checked (from step_rpm up)
   double top_rpm = 0.0;          // rpm, highest speed checked (0 = the highest breakpoint)
   double drift_fraction = 0.5;   // 1, share of each channel's drift a steady error may use
+  double design_heat_w = 0.0;    // W, the fault that must stay detectable at every speed (0 = not checked)
+  double design_alarm_within_min = 120.0;  // min, how soon its lasting residual must reach the ALARM evidence
 };
 
 // A run of checked speeds where some channel's steady error is beyond its share of the drift.
@@ -34,6 +44,8 @@ struct SpeedGap {
   int channel = -1;                  // 0-based, the channel with the largest excess there
   double worst_error_K = 0;          // K, that channel's steady error with the largest |.|: + = probe above the model
   double allowed_K = 0;              // K, its allowance on that side (drift_fraction x drift)
+  bool hides_fault = false;          // the gap is a design fault that would not ALARM (the error may be within its share)
+  double fault_rise_K = 0;           // K, that fault's steady rise at the channel's node (hides_fault)
 };
 
 struct SpeedCoverage {
@@ -44,6 +56,10 @@ struct SpeedCoverage {
   double valid_from_rpm = 0, valid_to_rpm = 0;     // rpm, the covered run that holds the top breakpoint (from = 0: every speed up to `to`)
   bool covers_all = false;                         // every speed checked is covered
   double drift_fraction = 0.5;
+  double design_heat_w = 0.0, design_alarm_within_min = 120.0;
+  // per channel, > 0 when at some speed the design fault's rise stays below what the bands need to
+  // ALARM in time even with an exact model (hand-set bands wider than the fault): the K it would need
+  std::array<double, 5> bands_hide_fault_K{};
 };
 
 // The quantized module model of `r` (what the blob holds) against the network at every

@@ -18,7 +18,7 @@ TEST(ReduceSpeedRange, AModelOffBelowItsFirstBreakpointIsRefusedWithTheRange) {
   write_text(d.file("model.json"), spindle4_model_json());
   const CliResult refused = run_btsm(d, "reduce model.json --speeds 4000,6000,8000 --drift 2 --low-drift 2 --out r.json --blob m.bin");
   EXPECT_EQ(refused.code, 1) << refused.err;
-  EXPECT_NE(refused.err.find("off by more than its bands"), std::string::npos) << refused.err;
+  EXPECT_NE(refused.err.find("does not hold at speeds the spindle may run"), std::string::npos) << refused.err;
   EXPECT_NE(refused.err.find(" rpm: a healthy spindle settles up to"), std::string::npos) << refused.err;
   EXPECT_NE(refused.err.find("valid (steady error within 0.5 x the drift) for "), std::string::npos) << refused.err;
   EXPECT_FALSE(file_exists(d.file("r.json")));
