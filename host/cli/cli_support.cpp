@@ -1,4 +1,5 @@
 #include "cli_support.hpp"
+#include "host/io/decimal_number.hpp"
 
 #include <cerrno>
 #include <cmath>
@@ -51,10 +52,19 @@ void refuse_non_finite_numbers(CLI::App& app) {
         return {};
       },
       "", "representable integer");
+  // `--truth-out ''` wrote nothing and `flash-firmware --out ''` took the default name, silently: a
+  // value typed as empty is a mistake (an unset shell variable), never a choice; leave the option out.
+  const CLI::Validator not_empty(
+      [](std::string& text) -> std::string {
+        if (text.find_first_not_of(" \t") != std::string::npos) return {};
+        return "an empty value (an unset variable?); leave the option out for its default";
+      },
+      "", "non-empty");
   for (CLI::Option* opt : app.get_options()) {
     const std::string type = opt->get_type_name();
     if (type.find("FLOAT") != std::string::npos) opt->check(finite);
     else if (type.find("INT") != std::string::npos) opt->check(representable);
+    else if (opt->get_type_size() != 0) opt->check(not_empty);  // text, paths; not flags
   }
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) refuse_non_finite_numbers(*sub);
 }
@@ -78,16 +88,9 @@ CLI::Validator positive_number() { return bound_check(true, "positive number"); 
 CLI::Validator non_negative_number() { return bound_check(false, "non-negative number"); }
 
 bool parse_decimal(const std::string& text, double& out) {
-  const auto first = text.find_first_not_of(" \t");
-  if (first == std::string::npos) return false;
-  const auto last = text.find_last_not_of(" \t");
-  const std::string t = text.substr(first, last - first + 1);
-  // strtod also reads hex floats, "inf" and "nan": only digits, sign, point and exponent here
-  if (t.find_first_not_of("0123456789+-.eE") != std::string::npos) return false;
-  errno = 0;
-  char* end = nullptr;
-  out = std::strtod(t.c_str(), &end);
-  return errno != ERANGE && end == t.c_str() + t.size() && std::isfinite(out);
+  const auto v = io::decimal_number(text);
+  if (v) out = *v;
+  return v.has_value();
 }
 
 std::vector<double> number_list(const std::string& text, const std::string& option) {

@@ -59,8 +59,15 @@ std::optional<DeviceKey> key_for_device(const FlashFirmwareArgs& a, uint32_t id)
 // The image a Bluno takes through Optiboot: application flash only, below the 512-byte bootloader
 // at 0x7E00 (the key record ends there). Data at or past it would overwrite the bootloader or
 // fall off the 32 KiB part -- avrdude reports neither before writing.
-HexImage read_application_image(const std::string& path) {
-  HexImage img = read_intel_hex(path);
+HexImage read_application_image(const std::string& given) {
+  const std::string path = given.empty() ? default_hex_path() : given;
+  HexImage img;
+  try {
+    img = read_intel_hex(path);
+  } catch (const io::InputError& e) {
+    if (!given.empty()) throw;
+    throw io::InputError(std::string(e.what()) + " (the build's image: build it with the firmware enabled, or pass --hex)");
+  }
   constexpr uint32_t kBootloaderStart = device_key::kFlashAddress + device_key::kRecordSize;
   if (const auto first = img.bytes.lower_bound(kBootloaderStart); first != img.bytes.end())
     throw io::InputError(fmt::format("{}: data at 0x{:04X}: an application image for the Bluno ends below the bootloader at "
@@ -70,8 +77,7 @@ HexImage read_application_image(const std::string& path) {
 }
 
 // Patches the key record into the image and writes it (0600).
-void write_patched_image(const FlashFirmwareArgs& a, uint32_t id, const DeviceKey& key, const std::string& out) {
-  HexImage img = read_application_image(a.hex.empty() ? default_hex_path() : a.hex);
+void write_patched_image(HexImage img, uint32_t id, const DeviceKey& key, const std::string& out) {
   const auto r = patch_device_key(img, id, key);
   if (r.had_key)
     std::cerr << fmt::format("flash-firmware: image already held a key for device {}; replaced\n",
@@ -85,14 +91,17 @@ void run_flash_firmware(const FlashFirmwareArgs& a) {
   const std::string out = a.out.empty() ? "btsm-fw-" + device_id_text(id) + ".hex" : a.out;
   try {  // the patched image over its own input would replace the build's image with one module's key
     io::refuse_output_over_input(out, "--out", {a.hex.empty() ? default_hex_path() : a.hex, a.link.port});
+    io::refuse_output_file_that_cannot_be_made(out, "--out");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
-  const std::optional<DeviceKey> key = key_for_device(a, id);
-  if (key) write_patched_image(a, id, *key, out);
-  else read_application_image(a.hex.empty() ? default_hex_path() : a.hex);  // the dry run still checks the image
+  // Everything the arguments decide comes before a key is made or a keyed image written: the image
+  // and the port (a BLE link or no link at all was found only after the patched image was on disk).
+  const HexImage img = read_application_image(a.hex);
   const bool no_link_given = a.link.port.empty() && a.link.usb.empty() && a.link.ble.empty() && a.link.rfcomm.empty();
   const std::string port = a.dry_run && no_link_given ? std::string("PORT") : serial_port_for(spec_from(a.link));
+  const std::optional<DeviceKey> key = key_for_device(a, id);
+  if (key) write_patched_image(img, id, *key, out);
   const auto cmd = avrdude_command(port, out, a.avrdude);
   std::string line;
   for (const auto& s : cmd) line += (line.empty() ? "" : " ") + s;

@@ -242,7 +242,7 @@ void register_sim_commands(CLI::App& app) {
   cmd->add_option("--ch5-fraction", a->ch5_fraction, "share of the housing rise seen by the surface probe")
       ->capture_default_str();
   cmd->add_option("--start-steady", a->start_steady_rpm, "start in thermal steady state at this speed (rpm) instead of cold")
-      ->check(CLI::Range(0.0, 100000.0));
+      ->check(CLI::Range(0.0, 65534.0));  // the profiles' speed limit
   cmd->add_flag("--json", a->json, "print run statistics as JSON on stdout at the end");
   cmd->callback([a] { run_sim(*a); });
 }

@@ -110,7 +110,7 @@ void register_suite_commands(CLI::App& app) {
   cmd->add_option("--seed", a->seed, "master seed: strengths, nodes, noise and speeds of every case")->capture_default_str();
   cmd->add_option("--only", a->only, "keep cases whose id starts with this (repeatable)");
   cmd->add_option("--jobs", a->jobs, "btsm residual runs at once")->check(CLI::Range(1, 16))->capture_default_str();
-  cmd->add_option("--timeout", a->timeout_s, "seconds one btsm residual run may take")->capture_default_str();
+  cmd->add_option("--timeout", a->timeout_s, "seconds one btsm residual run may take")->check(positive_number())->capture_default_str();
   cmd->add_option("--btsm", a->btsm, "btsm executable to run `residual` with (default: this one)");
   cmd->add_option("--residual-arg", a->residual_args, "extra argument for every btsm residual (repeatable)")
       ->allow_extra_args(false);

@@ -25,6 +25,12 @@ int main(int argc, char** argv) {
   btsm::cli::refuse_non_finite_numbers(app);  // after every registration: it walks them all
   // "btsm <command>:" in front of every error, as the user typed the command
   const auto command = [&app] { return app.get_subcommands().empty() ? std::string() : app.get_subcommands().front()->get_name(); };
+  // Library messages often start with their own stage name, which may be the command's: say it once
+  // ("btsm reduce: at 4000 rpm ...", not "btsm reduce: reduce: at 4000 rpm ...").
+  const auto said = [&command](const char* what) {
+    const std::string text = what, own = command() + ": ";
+    return text.compare(0, own.size(), own) == 0 ? text.substr(own.size()) : text;
+  };
   try {
     app.parse(argc, argv);
   } catch (const CLI::ParseError& e) {
@@ -32,10 +38,10 @@ int main(int argc, char** argv) {
     // of range, ...) are all "bad arguments": README promises 2. --help and --version are 0.
     return app.exit(e) == 0 ? btsm::cli::kExitOk : btsm::cli::kExitUsage;
   } catch (const btsm::cli::CommandError& e) {
-    std::cerr << "btsm " << command() << ": " << e.what() << "\n";
+    std::cerr << "btsm " << command() << ": " << said(e.what()) << "\n";
     return e.code;
   } catch (const btsm::io::InputError& e) {  // a reader's error no command translated: bad input
-    std::cerr << "btsm " << command() << ": " << e.what() << "\n";
+    std::cerr << "btsm " << command() << ": " << said(e.what()) << "\n";
     return btsm::cli::kExitUsage;
   } catch (const nlohmann::json::exception& e) {  // a JSON input of the wrong shape no reader named
     std::cerr << "btsm " << command() << ": a JSON input has the wrong shape: " << e.what()

@@ -99,6 +99,20 @@ void refuse_output_dir_that_is_no_directory(const std::string& dir, const std::s
                    "choose a directory, or a new name");
 }
 
+void refuse_output_file_that_cannot_be_made(const std::string& path, const std::string& option) {
+  struct stat st {};
+  if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode))
+    throw InputError(option + " " + path + ": is a directory; give a file name (e.g. " + path + "/rec.csv)");
+  const auto slash = path.find_last_of('/');
+  if (slash == std::string::npos) return;  // the current directory
+  const std::string dir = slash == 0 ? "/" : path.substr(0, slash);
+  if (::stat(dir.c_str(), &st) != 0)
+    throw InputError(option + " " + path + ": its directory " + dir + " does not exist (" + errno_text() + ")");
+  if (!S_ISDIR(st.st_mode)) throw InputError(option + " " + path + ": " + dir + " is not a directory");
+  if (::access(dir.c_str(), W_OK) != 0)
+    throw InputError(option + " " + path + ": its directory " + dir + " is not writable (" + errno_text() + ")");
+}
+
 std::string keep_existing_as_backup(const std::string& path) {
   struct stat st {};
   if (::stat(path.c_str(), &st) != 0 || !S_ISREG(st.st_mode) || st.st_size == 0) return "";

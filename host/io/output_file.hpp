@@ -25,6 +25,11 @@ void refuse_output_over_input(const std::string& output, const std::string& opti
 // is not a directory: checked before the work, which would otherwise run to the end and fail there.
 void refuse_output_dir_that_is_no_directory(const std::string& dir, const std::string& option);
 
+// Throws InputError when `path` (an output file given with `option`) is a directory or its directory
+// is missing, no directory or not writable: for a command that would first connect to a module or
+// run for long and only then find it cannot write.
+void refuse_output_file_that_cannot_be_made(const std::string& path, const std::string& option);
+
 // For an output that is rewritten from its first byte as the command goes (a recording): when
 // `path` is a non-empty regular file, renames it to the first free "<path>.~N~" (N = 1, 2, ...) and
 // returns that name; otherwise returns "". Throws std::runtime_error when the rename fails.

@@ -37,6 +37,8 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
     while (!line.empty() && (line.back() == '\r' || line.back() == ' ')) line.pop_back();
     if (line.empty()) continue;
     if (eof) fail("data after the end-of-file record");
+    if (line_no == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0)
+      fail("starts with a UTF-8 byte order mark; an Intel HEX file is plain ASCII (save it without the BOM)");
     if (line[0] != ':') fail("record does not start with ':'");
     if (line.size() < 11 || (line.size() - 1) % 2 != 0) fail("record too short or odd length");
     std::vector<uint8_t> rec((line.size() - 1) / 2);
@@ -62,7 +64,10 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
         if (img.bytes.size() > kMaxHexImageBytes)
           fail(fmt::format("more than {} bytes of data, the limit for a firmware image", kMaxHexImageBytes));
         break;
-      case 0x01: eof = true; break;
+      case 0x01:
+        if (len != 0) fail(fmt::format("end-of-file record with {} data bytes (it has none: a corrupt line?)", len));
+        eof = true;
+        break;
       case 0x02:
         if (len != 2) fail("extended segment address record must have 2 bytes");
         base = ((static_cast<uint32_t>(rec[4]) << 8) | rec[5]) << 4;
@@ -80,13 +85,7 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
 }
 
 HexImage read_intel_hex(const std::string& path) {
-  std::string text;
-  try {
-    text = io::read_input_file(path, kMaxHexFileBytes, "Intel HEX firmware image");
-  } catch (const io::InputError& e) {
-    throw io::InputError(std::string(e.what()) + " (build it with the firmware enabled, or pass --hex)");
-  }
-  return parse_intel_hex(text, path);
+  return parse_intel_hex(io::read_input_file(path, kMaxHexFileBytes, "firmware image (Intel HEX)"), path);
 }
 
 std::string format_intel_hex(const HexImage& image) {

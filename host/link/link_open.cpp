@@ -6,6 +6,8 @@
 #include "host/link/serial_transport.hpp"
 #include "host/link/usb_devices.hpp"
 
+#include <sys/stat.h>
+
 #include <algorithm>
 
 namespace btsm::link {
@@ -43,7 +45,15 @@ std::string serial_port_for(const LinkSpec& spec) {
     throw LinkError(LinkErrorKind::kUnsupported,
                     "firmware is flashed through the module's USB serial port (Optiboot), not over Bluetooth: "
                     "connect it by USB and pass --port or --usb");
-  if (!spec.port.empty()) return spec.port;
+  if (!spec.port.empty()) {
+    // A port that does not exist yet is left to the programmer (a dry run prints the command for
+    // later); one that exists must be a character device: avrdude was handed a regular file.
+    struct stat st {};
+    if (::stat(spec.port.c_str(), &st) == 0 && !S_ISCHR(st.st_mode))
+      throw LinkError(LinkErrorKind::kNoDevice, "serial " + spec.port + ": " + (S_ISDIR(st.st_mode) ? "a directory, not" : "not") +
+                                                    " a serial device; `btsm list` shows serial adapters");
+    return spec.port;
+  }
   if (!spec.usb.empty()) return tty_for_usb(spec.usb, usb_devices(spec.sysfs_root));
   return only_adapter_tty(spec.sysfs_root);
 }

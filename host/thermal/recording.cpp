@@ -179,7 +179,9 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
     if (std::abs(t) > kMaxRecordedTimeS)
       fail(source, line_no, 1, "column 'time_s': " + shown(cells[0]) + " s is beyond the +-" + format_compact(kMaxRecordedTimeS) +
                                    " s a recording may hold");
-    if (!rec.time_s.empty() && t - rec.time_s.back() < kMinRecordedStepS)
+    // The limit itself passes: 0.009 - 0.008 is 0.000999... in binary, so allow the rounding of the two times.
+    if (!rec.time_s.empty() &&
+        t - rec.time_s.back() < kMinRecordedStepS - 4 * std::numeric_limits<double>::epsilon() * std::max(std::abs(t), std::abs(rec.time_s.back())))
       fail(source, line_no, 1, "column 'time_s': " + shown(cells[0]) + " is less than " + format_compact(kMinRecordedStepS) +
                                    " s after the row before (" + format_compact(rec.time_s.back()) + "): a duplicated timestamp?");
     const double w = parse_number(cells[1], false, source, line_no, 2, "speed_rpm");

@@ -276,6 +276,29 @@ void check_time_constants(const ModalForm& f, double speed_rpm) {
                                             "ambient (a resistance or capacitance far out of range?)",
                                             speed_rpm, tau, tau / 86400, kMaxTimeConstantS));
 }
+
+// A steady rise of thousands of kelvin is no spindle (steel melts 1,400 K above the room): a heat
+// source or resistance far out of range, e.g. a hand-edited 1e300 W. Named before the balanced
+// analysis, whose sums overflow on it to singular values of 0 ("the inputs heat no node").
+constexpr double kMaxSteadyRiseK = 1e4;
+void check_steady_rise(const Network& net, const NodeMatrices& m, const Eigen::VectorXd& rise, double speed_rpm) {
+  for (int i = 0; i < rise.size(); ++i) {
+    if (std::isfinite(rise[i]) && std::abs(rise[i]) <= kMaxSteadyRiseK) continue;
+    std::string largest;
+    double largest_w = -1;
+    for (int k = 0; k < m.source_w.size() && k < static_cast<int>(net.sources.size()); ++k)
+      if (!(std::abs(m.source_w[k]) <= largest_w)) {
+        largest_w = std::abs(m.source_w[k]);
+        largest = fmt::format("; its largest heat source is '{}' = {:.4g} W", net.sources[static_cast<std::size_t>(k)].name,
+                              m.source_w[k]);
+      }
+    throw std::invalid_argument(fmt::format("reduce: at {:g} rpm the model heats node '{}' {} above ambient at steady state, "
+                                            "beyond the {:g} K any spindle can reach{} (a heat source or resistance far out of range?)",
+                                            speed_rpm, net.nodes[static_cast<std::size_t>(i)].name,
+                                            std::isfinite(rise[i]) ? fmt::format("{:.4g} K", rise[i]) : std::string("without bound"),
+                                            kMaxSteadyRiseK, largest));
+  }
+}
 }  // namespace
 
 ScheduledReduction build_scheduled_model(const Network& net, const Eigen::VectorXd& params, const ReduceOptions& o) {
@@ -357,9 +380,11 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
     if (m.source_to_node.cols() == 0) throw std::runtime_error("reduction: the network has no heat sources (inputs)");
     const ModalForm f = modal_form(m);
     check_time_constants(f, speed);
+    const Eigen::VectorXd rise = steady_rise(m);
+    check_steady_rise(net, m, rise, speed);
     SpeedReduction r = balanced(m, f, speed, m.source_to_node);
     r.source_w = m.source_w;
-    r.steady_rise_K = steady_rise(m);
+    r.steady_rise_K = rise;
     r.bt_steady_rise_K = r.bt.c * (-(r.bt.b * m.source_w)(0) / r.bt.pole);
     const std::size_t bp = i + 1;
     fm.speed_rpm[bp] = static_cast<uint16_t>(speed);
@@ -384,6 +409,7 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
   {
     const NodeMatrices ms = assemble(net, params, ref_speed);
     const Eigen::VectorXd x_stop = steady_rise(ms);
+    check_steady_rise(net, ms, x_stop, ref_speed);
     const NodeMatrices mc = assemble(net, params, 0.0);
     const ModalForm fc = modal_form(mc);
     check_time_constants(fc, 0.0);

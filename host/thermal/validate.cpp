@@ -117,7 +117,7 @@ std::string prediction_problem(const Network& net, const Eigen::MatrixXd& predic
                     r < rec.rows() ? rec.speed_rpm[r] : NAN);
       return "the model's prediction diverges: node '" + net.nodes[static_cast<std::size_t>(n)].name + "' at " + where + " is " +
              (std::isfinite(t) ? std::string(value) : std::string("not finite")) +
-             " (the network is not stable at the speeds this recording runs: its heat grows faster than it flows away)";
+             " (the network is not stable at the speeds this recording runs, its heat growing faster than it flows away, or a heat source or resistance is far out of range)";
     }
   return "";
 }

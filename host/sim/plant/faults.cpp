@@ -1,7 +1,7 @@
 #include "host/sim/plant/faults.hpp"
 
 #include "host/sim/plant/profile.hpp"
-#include "host/sim/plant/strict_number.hpp"
+#include "host/io/decimal_number.hpp"
 
 #include <cmath>
 #include <sstream>
@@ -11,7 +11,7 @@ namespace btsm::sim {
 namespace {
 
 double number(const std::string& t, const std::string& what) {
-  const auto v = strict_number(t);
+  const auto v = io::decimal_number(t);
   if (!v) throw std::invalid_argument(what + ": '" + t + "' is not a number");
   return *v;
 }

@@ -1,6 +1,6 @@
 #include "host/sim/plant/hidden_effects.hpp"
 
-#include "host/sim/plant/strict_number.hpp"
+#include "host/io/decimal_number.hpp"
 
 #include <cmath>
 #include <stdexcept>
@@ -27,7 +27,7 @@ double number(const std::string& text, const std::vector<std::string>& suffixes,
       t.resize(t.size() - s.size());
       break;
     }
-  const auto v = strict_number(t);
+  const auto v = io::decimal_number(t);
   if (!v) fail(what + ": '" + text + "' is not a number");
   return *v * scale;
 }

@@ -1,7 +1,7 @@
 #include "host/sim/plant/profile.hpp"
 
 #include "host/io/input_file.hpp"
-#include "host/sim/plant/strict_number.hpp"
+#include "host/io/decimal_number.hpp"
 
 #include <cmath>
 #include <limits>
@@ -22,14 +22,16 @@ std::string trim(const std::string& s) {
 double parse_number(const std::string& text, const std::string& what) {
   const std::string t = trim(text);
   if (t.empty()) throw std::invalid_argument(what + ": empty number");
-  const auto v = strict_number(t);
+  const auto v = io::decimal_number(t);
   if (!v) throw std::invalid_argument(what + ": '" + t + "' is not a number");
   return *v;
 }
 
-// Splits on commas and white space, dropping empty items. White space around '@' belongs to the
-// segment ("1m @ 6000" is 1m@6000, not three items).
-std::vector<std::string> split_items(const std::string& text) {
+// Splits on commas and white space. White space around '@' belongs to the segment ("1m @ 6000" is
+// 1m@6000, not three items). A comma with nothing before or after it is an empty item, refused
+// as in every number list ("1m@6000,,1m@0" is a typo, not two segments); a line of a profile file
+// may end in a comma (the list goes on on the next line).
+std::vector<std::string> split_items(const std::string& text, const std::string& what, bool trailing_comma_ok = false) {
   std::string s;
   for (std::size_t i = 0; i < text.size(); ++i) {
     const char c = text[i];
@@ -43,15 +45,30 @@ std::vector<std::string> split_items(const std::string& text) {
   }
   std::vector<std::string> out;
   std::string cur;
+  bool comma_open = true;  // a comma needs an item before it: the start counts as one
+  const auto empty_item = [&] {
+    throw std::invalid_argument(what + " '" + text + "': an empty item (a doubled, leading or trailing comma)");
+  };
   for (char c : s) {
     if (c == ',' || c == ' ' || c == '\t' || c == '\n' || c == '\r') {
-      if (!cur.empty()) out.push_back(cur);
+      if (!cur.empty()) {
+        out.push_back(cur);
+        comma_open = false;
+      }
       cur.clear();
+      if (c == ',') {
+        if (comma_open) empty_item();
+        comma_open = true;
+      }
     } else {
       cur += c;
     }
   }
-  if (!cur.empty()) out.push_back(cur);
+  if (!cur.empty()) {
+    out.push_back(cur);
+    comma_open = false;
+  }
+  if (comma_open && !out.empty() && !trailing_comma_ok) empty_item();
   return out;
 }
 
@@ -65,6 +82,10 @@ SpeedSegment parse_segment(const std::string& item, const std::string& where) {
   if (rpm.size() > 3 && rpm.compare(rpm.size() - 3, 3, "rpm") == 0) rpm.resize(rpm.size() - 3);
   seg.rpm = parse_number(rpm, where + " speed");
   if (seg.duration_s <= 0.0) throw std::invalid_argument(where + ": duration must be > 0");
+  // "1e-9s@6000" ran for 0 s and said so with exit 0: nothing steps or samples that briefly
+  if (seg.duration_s < kMinSegmentS)
+    throw std::invalid_argument(where + ": '" + item + "' lasts less than " + std::to_string(static_cast<int>(kMinSegmentS * 1000)) +
+                                " ms, shorter than anything the plant steps or the module samples");
   if (seg.rpm < 0.0 || seg.rpm > 65534.0)
     throw std::invalid_argument(where + ": speed must be within 0..65534 rpm");
   return seg;
@@ -107,7 +128,7 @@ SpeedProfile::SpeedProfile(std::vector<SpeedSegment> segments) {
 }
 
 SpeedProfile SpeedProfile::parse(const std::string& spec) {
-  const auto items = split_items(spec);
+  const auto items = split_items(spec, "speed profile");
   if (items.empty()) throw std::invalid_argument("speed profile: empty (expected e.g. 6h@6000,4h@0)");
   SpeedProfile p;
   for (size_t i = 0; i < items.size(); ++i)
@@ -126,7 +147,8 @@ SpeedProfile SpeedProfile::load_file(const std::string& path) {
     ++lineno;
     const auto hash = line.find('#');
     if (hash != std::string::npos) line.resize(hash);
-    const auto items = split_items(line);
+    if (lineno == 1 && line.compare(0, 3, "\xEF\xBB\xBF") == 0) line.erase(0, 3);  // a UTF-8 BOM, as recordings allow
+    const auto items = split_items(line, path + ":" + std::to_string(lineno), true);
     for (size_t i = 0; i < items.size(); ++i)
       p.segments_.push_back(parse_segment(
           items[i], path + ":" + std::to_string(lineno) + " item " + std::to_string(i + 1)));
@@ -196,7 +218,7 @@ std::string SpeedProfile::to_string() const {
 }
 
 AmbientProfile AmbientProfile::parse(const std::string& spec) {
-  const auto items = split_items(spec);
+  const auto items = split_items(spec, "ambient");
   if (items.empty()) throw std::invalid_argument("ambient: empty (expected e.g. 20 or 20,2h@22)");
   AmbientProfile a;
   a.start_c_ = parse_number(items[0], "ambient start value");

@@ -25,6 +25,9 @@ struct SpeedSegment {
 // Longest duration accepted, the time a recording may hold (thermal/recording.hpp kMaxRecordedTimeS):
 // beyond it the run never ends and its time stamps lose their seconds.
 inline constexpr double kMaxDurationS = 1.0e9;
+// The shortest speed segment: below a plant step (0.25 s) and the module's sample period a segment
+// changes nothing but the run's length.
+inline constexpr double kMinSegmentS = 0.1;
 // Parses "90", "90s", "15m", "15min", "1.5h" into seconds (at most kMaxDurationS). `what` names
 // the item in errors.
 double parse_duration_s(const std::string& text, const std::string& what);

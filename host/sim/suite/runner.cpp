@@ -77,8 +77,13 @@ std::vector<std::string> residual_command(const std::string& btsm, const std::st
   for (const char* use : {"fit", "check"})
     for (const auto& r : truth.at("runs"))
       if (r.at("use") == use) {
+        // a case's recordings are files in its own folder: a hand-edited "../../x" or "/etc/passwd" is no run of it
+        const std::string file = r.at("file").get<std::string>();
+        if (file.empty() || file.find('/') != std::string::npos || file == "." || file == "..")
+          throw io::InputError((fs::path(case_dir) / "truth.json").string() + ": run file '" + file +
+                               "' is not a file name in the case's folder");
         argv.push_back(std::string("--") + use);
-        argv.push_back((fs::path(case_dir) / r.at("file").get<std::string>()).string());
+        argv.push_back((fs::path(case_dir) / file).string());
       }
   argv.insert(argv.end(), extra.begin(), extra.end());
   return argv;
@@ -121,14 +126,26 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     }
     CaseResult r;
     std::error_code rename_error;
+    std::string not_an_answer;  // a child that exited 0 but printed no residual answer (another program as --btsm)
     if (ch.pid >= 0) {  // a child ran: its answer replaces the old one only when complete
       std::error_code ec;
-      if (!timed_out && WIFEXITED(status) && WEXITSTATUS(status) == 0)
+      const bool exited_ok = !timed_out && WIFEXITED(status) && WEXITSTATUS(status) == 0;
+      if (exited_ok) {
+        try {
+          not_an_answer = answer_shape_problem(read_json(answer_part(dir)));
+        } catch (const std::exception& e) {
+          not_an_answer = e.what();
+        }
+      }
+      if (exited_ok && not_an_answer.empty())
         fs::rename(answer_part(dir), dir / "residual.json", rename_error);
       else
         fs::remove(answer_part(dir), ec);
     }
-    if (rename_error) {
+    if (!not_an_answer.empty()) {
+      r = failed_case(truth, "btsm residual exited 0 but printed no answer (" + not_an_answer + "); the previous residual.json is kept",
+                      secs);
+    } else if (rename_error) {
       r = failed_case(truth, "cannot keep the answer as residual.json: " + rename_error.message(), secs);
     } else if (timed_out) {
       r = failed_case(truth, fmt::format("btsm residual ran past {:.0f} s and was stopped", opts.timeout_s), secs);
@@ -140,8 +157,11 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     } else {
       try {
         const nlohmann::json answer = read_json(dir / "residual.json");
+        if (const std::string why = answer_shape_problem(answer); !why.empty())
+          throw io::InputError((dir / "residual.json").string() + ": " + why);
         // a reused answer (no child ran): the loop's own run time, as it reported it
-        r = score_case(truth, answer, ch.pid < 0 ? answer.value("seconds", secs) : secs);
+        const double reported = answer.contains("seconds") && answer["seconds"].is_number() ? answer["seconds"].get<double>() : secs;
+        r = score_case(truth, answer, ch.pid < 0 ? reported : secs);
       } catch (const std::exception& e) {
         r = failed_case(truth, std::string("unreadable residual.json: ") + e.what(), secs);
       }

@@ -46,6 +46,26 @@ CaseResult failed_case(const nlohmann::json& truth, const std::string& error, do
   return r;
 }
 
+std::string answer_shape_problem(const nlohmann::json& answer) {
+  if (!answer.is_object()) return "not a JSON object";
+  if (!answer.contains("verdict"))  // an answer of a loop that predates `verdict` has its effect name
+    return answer.contains("effect") && answer["effect"].is_string() ? "" : "neither 'verdict' nor 'effect'";
+  const auto& v = answer["verdict"];
+  if (!v.is_string()) return "'verdict' is not text";
+  static const char* const kVerdicts[] = {"effect", "partial", "none", "unexplained"};
+  if (std::find(std::begin(kVerdicts), std::end(kVerdicts), v.get<std::string>()) == std::end(kVerdicts))
+    return "'verdict' is '" + v.get<std::string>() + "', not effect, partial, none or unexplained";
+  if (answer.contains("effect") && !answer["effect"].is_string()) return "'effect' is not text";
+  if (answer.contains("nodes")) {
+    if (!answer["nodes"].is_array()) return "'nodes' is not a list";
+    for (const auto& n : answer["nodes"])
+      if (!n.is_string()) return "'nodes' holds an entry that is not a node name";
+  }
+  for (const char* k : {"rmse_before_K", "rmse_after_K"})
+    if (answer.contains(k) && !answer[k].is_number() && !answer[k].is_null()) return std::string("'") + k + "' is not a number";
+  return "";
+}
+
 CaseResult score_case(const nlohmann::json& truth, const nlohmann::json& answer, double residual_s) {
   CaseResult r = from_truth(truth, residual_s);
   r.effect = answer.value("effect", std::string());

@@ -36,6 +36,11 @@ struct CaseResult {
 
 // `truth` = truth.json of the case (generate.hpp), `answer` = the parsed --json output.
 CaseResult score_case(const nlohmann::json& truth, const nlohmann::json& answer, double residual_s);
+// "" when `answer` has the shape of `btsm residual --json` as far as scoring reads it (an object;
+// verdict one of effect/partial/none/unexplained (or, from a loop before verdicts, an effect name); effect a string; nodes a list of names;
+// rmse_before_K/rmse_after_K numbers or null), else what is wrong: {"verdict":5} or
+// "effects":"x" were scored as if meant.
+std::string answer_shape_problem(const nlohmann::json& answer);
 // A case whose run failed (no JSON): counted, never named or claimed.
 CaseResult failed_case(const nlohmann::json& truth, const std::string& error, double residual_s);
 

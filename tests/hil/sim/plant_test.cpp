@@ -2,7 +2,7 @@
 // behind it, faults and hidden effects acting where they should.
 #include "host/sim/plant/probes.hpp"
 #include "host/sim/plant/spindle_plant.hpp"
-#include "host/sim/plant/strict_number.hpp"
+#include "host/io/decimal_number.hpp"
 
 #include <gtest/gtest.h>
 
@@ -48,6 +48,28 @@ TEST(SpeedProfile, LoadsFilesWithCommentsAndReportsTheLine) {
   } catch (const std::invalid_argument& e) {
     EXPECT_NE(std::string(e.what()).find(":2"), std::string::npos) << e.what();
   }
+}
+
+// The third hostile-input probe: an empty item, hex, a 0 s segment were taken silently; a BOM
+// made "item 1 duration: '\xEF\xBB\xBF1' is not a number".
+TEST(SpeedProfile, EmptyItemsHexAndVanishingSegmentsAreRefused) {
+  for (const char* bad : {"1m@6000,,1m@0", ",1m@6000", "1m@6000,", "1m@6000, ,1m@0", "1m@0x1770", "0x3c@6000", "1e-9s@6000",
+                          "50ms@6000"}) {
+    try {
+      SpeedProfile::parse(bad);
+      ADD_FAILURE() << "accepted '" << bad << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("speed profile"), std::string::npos) << e.what();
+    }
+  }
+  EXPECT_EQ(SpeedProfile::parse("1m @ 6000, 200ms@0 30s@100").segments().size(), 3u);
+  EXPECT_THROW(AmbientProfile::parse("20,,1h@22"), std::invalid_argument);
+  EXPECT_THROW(AmbientProfile::parse("20,1h@0x16"), std::invalid_argument);
+  const std::string path = testing::TempDir() + "/profile_bom.txt";
+  std::ofstream(path) << "\xEF\xBB\xBF" << "1h@6000,\n30m@0\n";  // a line may end in a comma
+  EXPECT_EQ(SpeedProfile::load_file(path).segments().size(), 2u);
+  std::ofstream(path) << "1h@6000,,30m@0\n";
+  EXPECT_THROW(SpeedProfile::load_file(path), std::invalid_argument);
 }
 
 TEST(SpeedProfile, ReplaceFromKeepsThePast) {
@@ -186,13 +208,15 @@ TEST(Probes, Pt1000AndFaultsReachTheFrontEnd) {
   EXPECT_NEAR(fe.probe_ohm[3], pt1000_ohm(20.0), 1e-9);
 }
 
-// The one number reader behind profiles, faults and hidden effects: the whole text, finite.
-TEST(StrictNumber, TheWholeTextMustBeOneFiniteNumber) {
-  EXPECT_EQ(strict_number("12"), 12.0);
-  EXPECT_EQ(strict_number("-0.5"), -0.5);
-  EXPECT_EQ(strict_number("1e3"), 1000.0);
-  for (const char* bad : {"", "12x", "x", "6h", "1.5W", "nan", "inf", "1e999", "--1"})
-    EXPECT_FALSE(strict_number(bad).has_value()) << bad;
+// The one number reader behind profiles, faults, hidden effects and the CLI's numbers: the whole
+// text, decimal, finite (hex was read by the plant's specifications while the CLI refused it).
+TEST(DecimalNumber, TheWholeTextMustBeOneFiniteDecimalNumber) {
+  EXPECT_EQ(io::decimal_number("12"), 12.0);
+  EXPECT_EQ(io::decimal_number("-0.5"), -0.5);
+  EXPECT_EQ(io::decimal_number("1e3"), 1000.0);
+  EXPECT_EQ(io::decimal_number(" 6000\t"), 6000.0);
+  for (const char* bad : {"", " ", "12x", "x", "6h", "1.5W", "nan", "inf", "1e999", "1e-400", "--1", "0x10", "0x1p4", "1 2"})
+    EXPECT_FALSE(io::decimal_number(bad).has_value()) << bad;
 }
 
 }  // namespace

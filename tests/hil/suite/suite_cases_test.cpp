@@ -4,6 +4,7 @@
 #include "host/sim/plant/spindle_plant.hpp"
 #include "host/sim/suite/cases.hpp"
 #include "host/sim/suite/generate.hpp"
+#include "host/sim/suite/runner.hpp"
 #include "host/sim/suite/score.hpp"
 #include "host/thermal/declared_columns.hpp"
 #include "host/thermal/recording.hpp"
@@ -255,6 +256,43 @@ TEST(EffectSuiteScore, GoalIsACutOrTheNoiseFloor) {
   auto amb = truth_of("ambient_dynamics", {"rear_bearing", "housing", "front_bearing", "shaft"});
   amb["nodes_matter"] = false;
   EXPECT_TRUE(score_case(amb, answer("effect", "ambient_dynamics", {"housing"}, 0.3, 0.01), 1).named);
+}
+
+// A hand-edited or foreign answer ({"verdict":5}, "nodes":"x", another program's output) was
+// scored as if meant; the runner now names what is wrong and keeps the previous answer.
+TEST(EffectSuiteScore, AnAnswerOfAnotherShapeIsNamedNotScored) {
+  EXPECT_EQ(answer_shape_problem(answer("effect", "sensor_lag", {"housing"}, 0.3, 0.01)), "");
+  EXPECT_EQ(answer_shape_problem({{"effect", "sensor_lag"}}), "");  // a loop before verdicts
+  for (const auto& [bad, says] : std::vector<std::pair<nlohmann::json, std::string>>{
+           {nlohmann::json::array(), "not a JSON object"},
+           {{{"verdict", 5}}, "'verdict' is not text"},
+           {{{"verdict", "maybe"}}, "'verdict' is 'maybe'"},
+           {{{"x", 1}}, "neither 'verdict' nor 'effect'"},
+           {{{"verdict", "effect"}, {"effect", 3}}, "'effect' is not text"},
+           {{{"verdict", "effect"}, {"nodes", "x"}}, "'nodes' is not a list"},
+           {{{"verdict", "effect"}, {"nodes", {1}}}, "not a node name"},
+           {{{"verdict", "none"}, {"rmse_after_K", "0.1"}}, "'rmse_after_K' is not a number"}})
+    EXPECT_NE(answer_shape_problem(bad).find(says), std::string::npos) << bad.dump() << ": " << answer_shape_problem(bad);
+}
+
+// A case's runs are files in its folder: a truth.json naming "../../../etc/passwd" was handed to residual.
+TEST(EffectSuiteRunner, RunFilesOutsideTheCaseFolderAreRefused) {
+  const std::string dir = testing::TempDir() + "/suite_case_paths";
+  std::filesystem::create_directories(dir);
+  for (const char* file : {"../../../etc/passwd", "/etc/passwd", "..", ""}) {
+    std::ofstream(dir + "/truth.json") << nlohmann::json{{"runs", {{{"use", "fit"}, {"file", file}}}}}.dump();
+    try {
+      (void)residual_command("btsm", dir, {});
+      ADD_FAILURE() << "accepted run file '" << file << "'";
+    } catch (const std::invalid_argument& e) {
+      EXPECT_NE(std::string(e.what()).find("not a file name in the case's folder"), std::string::npos) << e.what();
+    }
+  }
+  std::ofstream(dir + "/truth.json") << R"({"runs":[{"use":"fit","file":"warmup_1.csv"},{"use":"check","file":"check.csv"}]})";
+  const auto argv = residual_command("btsm", dir, {});
+  ASSERT_EQ(argv.size(), 9u);
+  EXPECT_EQ(argv[6], dir + "/warmup_1.csv");
+  EXPECT_EQ(argv[8], dir + "/check.csv");
 }
 
 TEST(EffectSuiteScore, ClaimsOnDataWithoutAnEffectAreCounted) {

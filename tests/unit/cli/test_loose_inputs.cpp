@@ -148,7 +148,7 @@ TEST(LooseInputs, TheSimulatorNeitherOverwritesItsInputsNorReadsWithoutEnd) {
                       {sim + "--pty p --truth-out t.csv --eeprom t.csv", "--truth-out and --eeprom name the same file"},
                       {sim + "--pty p --eeprom /dev/zero", "EEPROM image"},
                       {sim + "--pty p --eeprom small.eeprom", "10 bytes, an EEPROM image has 1024"},
-                      {sim + "--pty ''", "--pty: an empty path"},
+                      {sim + "--pty ''", "--pty: an empty value"},
                       {sim + "--pty p --time-scale fast", "--time-scale 'fast'"},
                       {sim + "--pty p --board avr --elf cut.elf", "cut short"}},
                   2, 20);
@@ -187,6 +187,40 @@ TEST(LooseInputs, ReduceNamesAModelTooSlowForAModule) {
     }
   write_text(d.file("slow.json"), m.dump(2));
   expect_refusals(d, {{"reduce slow.json --speeds 4000,6000,8000 --out r.json", "slowest time constant"}}, 2, 60);
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+}
+
+// A heat source of 1e300 W (finite, inside widened bounds) overflowed the balanced analysis to
+// singular values of 0 and reduce asked "are all heat sources 0 W?". It names the rise and the source.
+// `--truth-out ''` wrote nothing and `flash-firmware --out ''` took the default name, silently;
+// record found a directory or a missing folder as its --out only after connecting.
+TEST(LooseInputs, EmptyValuesAndOutputsThatCannotBeMadeAreRefusedFirst) {
+  ScratchDir d;
+  write_text(d.file("port"), "stands for a module port\n");
+  expect_refusals(d, {{"sim-module --pty p --profile 1m@6000 --truth-out ''", "--truth-out: an empty value"},
+                      {"flash-firmware --device-id 0000de71 --out '' --dry-run", "--out: an empty value"},
+                      {"fit '' --preset spindle4 --out m.json", "File does not exist"},
+                      {"record --port /nonexistent/tty --out " + d.path + " --samples 2", "is a directory"},
+                      {"record --port /nonexistent/tty --out nodir/x.csv --samples 2", "its directory nodir does not exist"},
+                      {"effect-suite --list --timeout 0", "--timeout"}});
+}
+
+TEST(LooseInputs, ReduceNamesAHeatSourceFarOutOfRange) {
+  ScratchDir d;
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  bool found = false;
+  for (auto& p : m["network"]["parameters"])
+    if (p["name"] == "qf1") {
+      p["max"] = 1e300;
+      m["parameters"]["qf1"] = 1e300;
+      found = true;
+    }
+  ASSERT_TRUE(found) << "spindle4 has no parameter qf1";
+  write_text(d.file("hot.json"), m.dump(2));
+  expect_refusals(d, {{"reduce hot.json --speeds 4000,6000,8000 --out r.json", "beyond the 10000 K any spindle can reach"}}, 2, 60);
+  const CliResult run = run_btsm(d, "reduce hot.json --speeds 4000,6000,8000 --out r.json");
+  EXPECT_NE(run.err.find("heat source is 'Qf1' = "), std::string::npos) << run.err;
+  EXPECT_EQ(run.err.find("0 W?"), std::string::npos) << run.err;
   EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 

@@ -286,6 +286,20 @@ TEST(LinkCli, FlashFirmwareDryRunPatchesTheKey) {
                     home.path + "/q.hex");
   EXPECT_EQ(r.code, 3);
   EXPECT_NE(r.err.find("USB"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(home.path + "/q.hex"));  // the keyed image was written before the refusal
+  // A regular file as the port went to avrdude; an image given with --hex gets no "build it" hint.
+  std::ofstream(home.path + "/not_a_tty") << "x\n";
+  r = run(home, "flash-firmware --device-id 0000de71 --hex " + home.path + "/fw.hex --out " + home.path + "/q.hex --port " +
+                    home.path + "/not_a_tty --avrdude /bin/true");
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_NE(r.err.find("not a serial device"), std::string::npos) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(home.path + "/q.hex"));
+  std::ofstream(home.path + "/eof_data.hex") << ":0200000101FFFD\n";
+  r = run(home, "flash-firmware --device-id 0000de71 --hex " + home.path + "/eof_data.hex --out " + home.path +
+                    "/q.hex --dry-run");
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("end-of-file record with 2 data bytes"), std::string::npos) << r.err;
+  EXPECT_EQ(r.err.find("build it"), std::string::npos) << r.err;
 }
 
 TEST(LinkCli, ScanSaysListeningOnlyWhenAnAdapterScans) {

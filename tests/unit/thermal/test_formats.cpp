@@ -68,6 +68,16 @@ TEST(RecordingCsv, NumbersBeyondADoubleAreZeroOrNamed) {
   EXPECT_NE(big.find("beyond the range of a number"), std::string::npos) << big;
 }
 
+// Rows exactly the minimum step (1 ms) apart were refused ("0.009 is less than 0.001 s after
+// 0.008": the difference of the two binary times is 0.000999...); less than it still is.
+TEST(RecordingCsv, RowsExactlyTheMinimumStepApartAreKept) {
+  const Recording r = parse_recording_csv("time_s,speed_rpm,ambient_c,T1\n0.008,0,25,25.1\n0.009,0,25,25.1\n1000000.001,0,25,25\n1000000.002,0,25,25\n",
+                                          "ms.csv");
+  EXPECT_EQ(r.rows(), 4u);
+  const std::string close = error_of("time_s,speed_rpm,ambient_c,T1\n0.008,0,25,25.1\n0.0089,0,25,25.1\n");
+  EXPECT_NE(close.find("duplicated timestamp"), std::string::npos) << close;
+}
+
 // A validation table printed NMSE -9.9e27 for a constant -273.15 degC column (the mean's rounding
 // left 1e-25 K^2 of variance) and "--" for a constant 20 degC one: both have no variance.
 TEST(RecordingCsv, AConstantReferenceHasNoNmse) {
