@@ -186,7 +186,7 @@ void run_validate(const ValidateArgs& a) {
     json rj;
     rj["file"] = rec.source;
     rj["initial_state_c"] = std::vector<double>(v.initial_state_c.data(), v.initial_state_c.data() + v.initial_state_c.size());
-    std::cout << (a.json_out ? "" : fmt::format("{}\n  {:<6} {:>10} {:>10} {:>10} | {:>10} {:>10} | {:>10} {:>10}\n", rec.source, "node",
+    std::cout << (a.json_out ? "" : fmt::format("{}\n  {:<6} {:>10} {:>10} {:>10} | {:>10} {:>10} | {:>10} {:>10}\n", rec.source, "column",
                                                 "NMSE", "RMSE K", "max K", "op NMSE", "op max K", "cool NMSE", "cool max K"));
     for (std::size_t m = 0; m < net.measurements.size(); ++m) {
       const std::string col = net.measurements[m].column;
@@ -201,9 +201,10 @@ void run_validate(const ValidateArgs& a) {
       // A mode the recording does not contain (no cooling phase, say) has no figure: "--", not "nan".
       auto cell = [](double x, int decimals) { return std::isfinite(x) ? fmt::format("{:.{}f}", x, decimals) : std::string("--"); };
       if (!a.json_out)
-        std::cout << fmt::format("  {:<6} {:>10} {:>10} {:>10} | {:>10} {:>10} | {:>10} {:>10}\n", col, cell(v.all[m].nmse, 6),
+        std::cout << fmt::format("  {:<6} {:>10} {:>10} {:>10} | {:>10} {:>10} | {:>10} {:>10}  {}\n", col, cell(v.all[m].nmse, 6),
                                  cell(v.all[m].rmse_K, 5), cell(v.all[m].max_abs_K, 5), cell(v.operating[m].nmse, 6),
-                                 cell(v.operating[m].max_abs_K, 5), cell(v.cooling[m].nmse, 6), cell(v.cooling[m].max_abs_K, 5));
+                                 cell(v.operating[m].max_abs_K, 5), cell(v.cooling[m].nmse, 6), cell(v.cooling[m].max_abs_K, 5),
+                                 net.nodes[static_cast<std::size_t>(net.measurements[m].node)].name);
     }
     rj["steady_states"] = json::array();
     for (const auto& sp : v.steady) {
@@ -216,6 +217,14 @@ void run_validate(const ValidateArgs& a) {
       worst_mape = std::max(worst_mape, sp.mape_percent);
       rj["steady_states"].push_back(sj);
       if (!a.json_out) std::cout << fmt::format("  steady state at {:.0f} rpm: MAPE {:.4f} %\n", sp.speed_rpm, sp.mape_percent);
+    }
+    if (v.steady.empty() && !a.json_out) {  // say why there is no MAPE rather than leave it out
+      if (v.longest_phase_s > 0)
+        std::cout << fmt::format("  steady state: -- (the longest run at one speed before a stop, {:.1f} h at {:.0f} rpm, lasts {:.1f} "
+                                 "of the model's slowest time constants; a steady state needs {:g})\n",
+                                 v.longest_phase_s / 3600, v.longest_phase_rpm, v.longest_phase_time_constants, o.settled_time_constants);
+      else
+        std::cout << "  steady state: -- (no run at one speed that ends in a stop)\n";
     }
     out["recordings"].push_back(rj);
     if (!a.plots.empty()) plot_validation(net, rec, v, a.plots);

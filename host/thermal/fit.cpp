@@ -291,8 +291,10 @@ class FitPipeline {
 
   void record_stage(const StageSummary& st) {
     const std::string past = st.continuations > 0 ? ", " + std::to_string(st.continuations) + " chunk(s) past the budget" : "";
+    // a stage whose whole budget is shorter than a chunk: its last chunk is all of it
+    const int last = std::min(opts_.continuation.chunk_iterations, st.iterations);
     const std::string stop = st.converged ? "" : ", stopped at the iteration limit (its last " +
-                                                 std::to_string(opts_.continuation.chunk_iterations) + " lowered the cost " +
+                                                 std::to_string(last) + " iterations lowered the cost " +
                                                  fmt_double(100 * st.last_chunk_gain, 3) + " %)";
     say(st.name + ": rms " + fmt_double(st.rms_K, 4) + " K after " + std::to_string(st.iterations) + " iterations" + past + stop +
         " (" + fmt_double(st.seconds, 3) + " s)");

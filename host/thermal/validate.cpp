@@ -164,6 +164,11 @@ RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd
       const double speed = rec.speed_rpm[b];
       const double slowest = -poles_per_s(net, params, speed).maxCoeff();
       const double duration = rec.time_s[stop] - rec.time_s[b];
+      if (slowest > 0 && duration * slowest > v.longest_phase_time_constants) {
+        v.longest_phase_time_constants = duration * slowest;
+        v.longest_phase_s = duration;
+        v.longest_phase_rpm = rec.speed_rpm[b];
+      }
       if (slowest > 0 && duration * slowest >= opts.settled_time_constants) {
         SteadyStatePoint sp;
         sp.speed_rpm = speed;

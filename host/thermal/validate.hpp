@@ -34,6 +34,9 @@ struct RecordingValidation {
   std::vector<ErrorMetrics> all;               // per measurement, all rows
   std::vector<ErrorMetrics> operating, cooling;// per measurement and mode (count 0 = no data)
   std::vector<SteadyStatePoint> steady;
+  // The longest operating phase at one speed that ends in a stop, in slowest time constants (what a
+  // steady state needs settled_time_constants of): why `steady` may be empty.
+  double longest_phase_time_constants = 0, longest_phase_s = 0, longest_phase_rpm = 0;
 };
 
 struct ValidateOptions {

@@ -86,6 +86,9 @@ TEST(CliValidate, ARecordingNoLongerThanTheInitialRowsIsRefusedAndNmseIsExplaine
   EXPECT_EQ(shorter.code, 0) << shorter.err;
   EXPECT_NE(shorter.out.find("1 = perfect, 0 = no better than the mean"), std::string::npos) << shorter.out;
   EXPECT_EQ(shorter.out.find("nan"), std::string::npos) << shorter.out;
+  // the recording's warm-up is far shorter than 5 slowest time constants: no MAPE, and the reason
+  EXPECT_NE(shorter.out.find("steady state: -- (the longest run at one speed before a stop"), std::string::npos) << shorter.out;
+  EXPECT_NE(shorter.out.find("rear_bearing"), std::string::npos) << shorter.out;  // rows name their node
   const CliResult warned = run_btsm(d, "validate model.json short.csv");
   EXPECT_EQ(warned.code, 0) << warned.err;
   EXPECT_NE(warned.err.find("the initial state comes from 120 of its 200 rows"), std::string::npos) << warned.err;
