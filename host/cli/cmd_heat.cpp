@@ -116,6 +116,7 @@ void run_heat(const HeatArgs& a) {
     throw CommandError(kExitUsage, "--alpha is used only with --alpha-rule fixed (the rule '" + a.rule +
                                        "' chooses alpha itself): add --alpha-rule fixed, or drop --alpha");
   o.step_s = a.step_s;
+  o.break_at_speed_changes = true;  // friction heat jumps with the speed: no step straddles a change
   o.alpha_fixed = a.alpha;
   o.progress = [](const std::string& s) { std::cerr << "heat: " << s << "\n"; };
   o.noise_sigma_k = a.noise_k;
@@ -141,9 +142,12 @@ void run_heat(const HeatArgs& a) {
     throw CommandError(kExitUsage, e.what());
   }
   const std::vector<std::string> cols = th::measured_columns(model.network, rec);
-  std::cerr << fmt::format("heat: {} samples ({:.2f} h), {} measured columns, {} source nodes, {:g} s steps; alpha by {}\n",
+  int changes = 0;  // a step also begins at each speed change (o.break_at_speed_changes)
+  for (std::size_t k = 1; k < rec.rows(); ++k) changes += rec.speed_rpm[k] != rec.speed_rpm[k - 1];
+  std::cerr << fmt::format("heat: {} samples ({:.2f} h), {} measured columns, {} source nodes, {:g} s steps (a new one also at each "
+                           "of the {} speed changes); alpha by {}\n",
                            rec.rows(), (rec.time_s.back() - rec.time_s.front()) / 3600.0, cols.size(), p.source_nodes.size(),
-                           a.step_s, a.rule);
+                           a.step_s, changes, a.rule);
   const auto t0 = std::chrono::steady_clock::now();
   th::HeatInverseResult r;
   try {
@@ -213,7 +217,14 @@ void run_heat(const HeatArgs& a) {
   const std::string steps = mean_step_s > 1.5 * a.step_s
                                 ? fmt::format("{} steps, one per sample interval (mean {:.4g} s): --step {:g} s is shorter than the samples' spacing",
                                               r.heat_w.rows(), mean_step_s, a.step_s)
-                                : fmt::format("{} steps of {:g} s", r.heat_w.rows(), a.step_s);
+                                : fmt::format("{} steps of up to {:g} s, a new one at each speed change", r.heat_w.rows(), a.step_s);
+  // Steps differ in length (a speed change starts one): means are over time, not over steps.
+  Eigen::VectorXd step_len(r.heat_w.rows());
+  for (Eigen::Index i = 0; i < step_len.size(); ++i)
+    step_len[i] = (i + 1 < step_len.size() ? r.piece_start_s[static_cast<std::size_t>(i + 1)] : rec.time_s.back()) -
+                  r.piece_start_s[static_cast<std::size_t>(i)];
+  const double total_s = step_len.sum();
+  const auto time_mean = [&](const Eigen::VectorXd& v) { return total_s > 0 ? v.dot(step_len) / total_s : v.mean(); };
   std::cout << fmt::format("Inverse heat sources: {} on {} ({})\n", a.recording, model.network.name, steps);
   std::cout << fmt::format("  method {} ({}), alpha = {:.4g} K^2/W^2 chosen by {}{}\n", a.method,
                            a.scheme == "cn" ? "Crank-Nicolson" : "exact ZOH", r.alpha, r.rule,
@@ -224,7 +235,8 @@ void run_heat(const HeatArgs& a) {
   std::cout << fmt::format("  {:<16} {:>10} {:>10} {:>10} {:>12}\n", "node", "mean [W]", "min [W]", "max [W]", "mean 1σ [W]");
   for (int s = 0; s < m; ++s)
     std::cout << fmt::format("  {:<16} {:>10.3f} {:>10.3f} {:>10.3f} {:>12.3f}\n", model.network.nodes[p.source_nodes[s]].name,
-                             r.heat_w.col(s).mean(), r.heat_w.col(s).minCoeff(), r.heat_w.col(s).maxCoeff(), r.heat_sigma_w.col(s).mean());
+                             time_mean(r.heat_w.col(s)), r.heat_w.col(s).minCoeff(), r.heat_w.col(s).maxCoeff(),
+                             time_mean(r.heat_sigma_w.col(s)));
   if (!a.out_dir.empty()) std::cout << "  written: " << a.out_dir << "/heat_sources.csv, heat_alpha_scan.csv, heat_sources.png/.svg\n";
 }
 

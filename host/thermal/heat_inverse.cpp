@@ -113,7 +113,9 @@ Prepared prepare(const InverseProblem& p, const HeatInverseOptions& o) {
   std::map<std::pair<double, unsigned>, NodeMatrices> mats_cache;
   pr.step_of_interval.resize(pr.N - 1);
   pr.offset.resize(pr.n, pr.N - 1);
-  std::map<long long, int> piece_ids;
+  std::map<std::pair<long long, long long>, int> piece_ids;  // (operating segment, step): both ascend with time
+  long long segment = 0;
+  double segment_start_s = p.time_s[0];
   std::vector<int> piece_of_interval(pr.N - 1);
   const double t0 = p.time_s[0];
   for (int k = 0; k + 1 < pr.N; ++k) {
@@ -137,10 +139,16 @@ Prepared prepare(const InverseProblem& p, const HeatInverseOptions& o) {
     pr.offset.col(k) = st.a_amb * p.ambient_c[k] + st.f;
     if (p.boundary_c.cols() > 0) pr.offset.col(k) += st.a_bnd * p.boundary_c.row(k).transpose();
     const long long raw = static_cast<long long>(std::floor((p.time_s[k] - t0) / o.step_s + 1e-9));
-    auto pit = piece_ids.find(raw);
+    if (o.break_at_speed_changes && k > 0 &&
+        (p.speed_rpm[k] != p.speed_rpm[k - 1] || (events && p.event_mask[static_cast<std::size_t>(k)] != p.event_mask[static_cast<std::size_t>(k - 1)]))) {
+      ++segment;
+      segment_start_s = p.time_s[k];
+    }
+    const auto piece_key = std::make_pair(segment, raw);
+    auto pit = piece_ids.find(piece_key);
     if (pit == piece_ids.end()) {
-      pit = piece_ids.emplace(raw, static_cast<int>(piece_ids.size())).first;
-      pr.piece_start_s.push_back(t0 + static_cast<double>(raw) * o.step_s);
+      pit = piece_ids.emplace(piece_key, static_cast<int>(piece_ids.size())).first;
+      pr.piece_start_s.push_back(std::max(t0 + static_cast<double>(raw) * o.step_s, segment_start_s));
       pr.first_sample_of_piece.push_back(k);
     }
     piece_of_interval[k] = pit->second;

@@ -43,6 +43,9 @@ std::string to_string(AlphaRule r);
 
 struct HeatInverseOptions {
   double step_s = 60.0;                            // s, sources are piecewise constant over this
+  // A step also begins where the speed (or an event) changes: friction heat jumps there, and a
+  // step straddling a stop rings (a 300 s step over a stop gave -5 W after it). Off: fixed steps.
+  bool break_at_speed_changes = false;
   TikhonovOrder order = TikhonovOrder::One;
   AlphaRule rule = AlphaRule::Gcv;
   Discretisation scheme = Discretisation::CrankNicolson;
