@@ -7,7 +7,9 @@
 
 #include <gtest/gtest.h>
 
+#include <functional>
 #include <string>
+#include <utility>
 
 namespace btsm::test {
 namespace {
@@ -175,28 +177,33 @@ TEST(LooseInputs, LinkCommandsRefuseOutputsOverTheirInputs) {
   EXPECT_EQ(read_text(d.file("fw.hex")), ":00000001FF\n");
 }
 
+// The spindle4 model with every parameter `pick` selects at 1e300 (its bound widened to hold it, so
+// the file loads): the model JSON and how many were set.
+std::pair<std::string, int> spindle4_with_huge(const std::function<bool(const nlohmann::json& param)>& pick) {
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  int count = 0;
+  for (auto& p : m["network"]["parameters"])
+    if (pick(p)) {
+      p["max"] = 1e300;
+      m["parameters"][p["name"].get<std::string>()] = 1e300;
+      ++count;
+    }
+  return {m.dump(2), count};
+}
+
 // Capacitances of 1e300 J/K load (finite, inside widened bounds) and leave modes of ~1e296 s:
 // reduce sampled them every 10 s for hours. It names the time constant at once.
 TEST(LooseInputs, ReduceNamesAModelTooSlowForAModule) {
   ScratchDir d;
-  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
-  for (auto& p : m["network"]["parameters"])
-    if (p["unit"] == "J/K") {  // every capacitance
-      p["max"] = 1e300;
-      m["parameters"][p["name"].get<std::string>()] = 1e300;
-    }
-  write_text(d.file("slow.json"), m.dump(2));
+  write_text(d.file("slow.json"), spindle4_with_huge([](const nlohmann::json& p) { return p["unit"] == "J/K"; }).first);
   expect_refusals(d, {{"reduce slow.json --speeds 4000,6000,8000 --out r.json", "slowest time constant"}}, 2, 60);
   EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
-// A heat source of 1e300 W (finite, inside widened bounds) overflowed the balanced analysis to
-// singular values of 0 and reduce asked "are all heat sources 0 W?". It names the rise and the source.
 // `--truth-out ''` wrote nothing and `flash-firmware --out ''` took the default name, silently;
 // record found a directory or a missing folder as its --out only after connecting.
 TEST(LooseInputs, EmptyValuesAndOutputsThatCannotBeMadeAreRefusedFirst) {
   ScratchDir d;
-  write_text(d.file("port"), "stands for a module port\n");
   expect_refusals(d, {{"sim-module --pty p --profile 1m@6000 --truth-out ''", "--truth-out: an empty value"},
                       {"flash-firmware --device-id 0000de71 --out '' --dry-run", "--out: an empty value"},
                       {"fit '' --preset spindle4 --out m.json", "File does not exist"},
@@ -205,18 +212,13 @@ TEST(LooseInputs, EmptyValuesAndOutputsThatCannotBeMadeAreRefusedFirst) {
                       {"effect-suite --list --timeout 0", "--timeout"}});
 }
 
+// A heat source of 1e300 W (finite, inside widened bounds) overflowed the balanced analysis to
+// singular values of 0 and reduce asked "are all heat sources 0 W?". It names the rise and the source.
 TEST(LooseInputs, ReduceNamesAHeatSourceFarOutOfRange) {
   ScratchDir d;
-  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
-  bool found = false;
-  for (auto& p : m["network"]["parameters"])
-    if (p["name"] == "qf1") {
-      p["max"] = 1e300;
-      m["parameters"]["qf1"] = 1e300;
-      found = true;
-    }
-  ASSERT_TRUE(found) << "spindle4 has no parameter qf1";
-  write_text(d.file("hot.json"), m.dump(2));
+  const auto [hot, count] = spindle4_with_huge([](const nlohmann::json& p) { return p["name"] == "qf1"; });
+  ASSERT_EQ(count, 1) << "spindle4 has no parameter qf1";
+  write_text(d.file("hot.json"), hot);
   expect_refusals(d, {{"reduce hot.json --speeds 4000,6000,8000 --out r.json", "beyond the 10000 K any spindle can reach"}}, 2, 60);
   const CliResult run = run_btsm(d, "reduce hot.json --speeds 4000,6000,8000 --out r.json");
   EXPECT_NE(run.err.find("heat source is 'Qf1' = "), std::string::npos) << run.err;
