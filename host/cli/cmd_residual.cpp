@@ -64,7 +64,10 @@ void run_residual(ResidualArgs& a) {
     for (const auto& f : a.fit) fit.push_back(th::read_recording_csv(f));
     for (const auto& f : a.check) check.push_back(th::read_recording_csv(f));
     for (auto* set : {&fit, &check})
-      for (auto& r : *set) th::declare_columns(r, a.boundaries, a.events);
+      for (auto& r : *set) {
+        th::declare_columns(r, a.boundaries, a.events);
+        if (const std::string gap = th::long_gap_warning(r); !gap.empty()) std::cerr << "residual: WARNING: " << gap << "\n";
+      }
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }

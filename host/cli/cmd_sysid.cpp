@@ -38,6 +38,7 @@ std::vector<Recording> read_all(const std::vector<std::string>& files) {
     } catch (const std::exception& e) {
       throw CommandError(kExitUsage, e.what());
     }
+    if (const std::string gap = long_gap_warning(recs.back()); !gap.empty()) std::cerr << "WARNING: " << gap << "\n";
   }
   return recs;
 }

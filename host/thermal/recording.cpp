@@ -6,6 +6,7 @@
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
 
+#include <algorithm>
 #include <charconv>
 #include <cerrno>
 #include <cstdlib>
@@ -208,6 +209,24 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
       rec.temp_c(static_cast<Eigen::Index>(r), static_cast<Eigen::Index>(c)) = temps[r][c];
   check_recording_metadata(rec);  // declared columns, channel roles: every command sees the same errors
   return rec;
+}
+
+std::string long_gap_warning(const Recording& r) {
+  if (r.rows() < 3) return "";
+  std::vector<double> spacing(r.rows() - 1);
+  for (std::size_t k = 0; k + 1 < r.rows(); ++k) spacing[k] = r.time_s[k + 1] - r.time_s[k];
+  const auto widest = std::max_element(spacing.begin(), spacing.end());
+  const std::size_t at = static_cast<std::size_t>(widest - spacing.begin());
+  const double gap = *widest;
+  std::nth_element(spacing.begin(), spacing.begin() + static_cast<long>(spacing.size() / 2), spacing.end());
+  const double median = spacing[spacing.size() / 2];
+  if (!(gap > 3600.0 && gap > 100.0 * median)) return "";
+  char text[320];
+  std::snprintf(text, sizeof text,
+                "%s: a gap of %.4g h between the rows at t = %.10g s and %.10g s, %.3g times the rows' usual spacing "
+                "of %.4g s: the model runs through it with the speed (%.0f rpm) and ambient of the row before held",
+                r.source.c_str(), gap / 3600.0, r.time_s[at], r.time_s[at + 1], gap / median, median, r.speed_rpm[at]);
+  return text;
 }
 
 Recording read_recording_csv(const std::string& path) {

@@ -47,6 +47,12 @@ constexpr double kMinRecordedStepS = 1.0e-3;
 // Size cap of a recording file (about 4 million rows of 5 channels), stated in the error.
 constexpr std::size_t kMaxRecordingBytes = std::size_t{256} << 20;
 
+// "" or a warning naming the recording's longest gap between rows when it is both over an hour
+// and more than 100 times the rows' usual (median) spacing: a model replayed over the recording runs
+// through it with the speed and ambient of the row before held, which a logger that was off did not
+// see (a 15-year gap was bridged without a word). Not an error: a stop may be logged sparsely.
+std::string long_gap_warning(const Recording& r);
+
 // Reads a recording. Throws io::InputError (a std::invalid_argument)
 // "<file>:<line>:<column>: <problem>" on a missing or misplaced mandatory column, a bad,
 // non-finite or out-of-bounds number, a wrong cell count, non-increasing time, or an empty file;

@@ -11,6 +11,7 @@
 #include <sim_cycle_timers.h>
 #include <sim_time.h>
 
+#include <cctype>
 #include <cmath>
 #include <cstdarg>
 #include <cstdio>
@@ -19,6 +20,7 @@
 #include <fcntl.h>
 #include <fstream>
 #include <stdexcept>
+#include <string>
 #include <unistd.h>
 
 namespace btsm::sim {
@@ -49,11 +51,24 @@ class StdoutSilencer {
   int saved_ = -1;
 };
 
-// Only warnings and errors from the core reach stderr.
+// Only warnings and errors from the core reach stderr, and without the core's terminal colour
+// codes ("\x1b[31m") when stderr is a file or a pipe (a log, a test's capture).
 void quiet_logger(avr_t*, const int level, const char* format, va_list ap) {
   if (level > LOG_WARNING) return;
-  std::fputs("simavr: ", stderr);
-  std::vfprintf(stderr, format, ap);
+  char text[1024];
+  std::vsnprintf(text, sizeof text, format, ap);
+  std::string out = "simavr: ";
+  const bool colour = ::isatty(STDERR_FILENO) != 0;
+  for (const char* c = text; *c != '\0'; ++c) {
+    if (!colour && c[0] == '\x1b' && c[1] == '[') {  // skip ESC [ digits/; ... final letter
+      c += 2;
+      while (*c != '\0' && (std::isdigit(static_cast<unsigned char>(*c)) || *c == ';')) ++c;
+      if (*c == '\0') break;
+      continue;
+    }
+    out += *c;
+  }
+  std::fputs(out.c_str(), stderr);
 }
 
 uint8_t* eeprom_memory(avr_t* avr) {

@@ -78,6 +78,21 @@ TEST(RecordingCsv, RowsExactlyTheMinimumStepApartAreKept) {
   EXPECT_NE(close.find("duplicated timestamp"), std::string::npos) << close;
 }
 
+// A 15-year gap between two rows was bridged without a word (validate, heat); a long gap is now
+// named with its place, a stop logged every 10 min among 5 s rows is not.
+TEST(RecordingCsv, ALongGapBetweenRowsIsNamed) {
+  std::string csv = "time_s,speed_rpm,ambient_c,T1\n";
+  for (int k = 0; k < 50; ++k) csv += std::to_string(5 * k) + ",6000,25,26\n";
+  const Recording even = parse_recording_csv(csv, "even.csv");
+  EXPECT_EQ(long_gap_warning(even), "");
+  const Recording gap = parse_recording_csv(csv + "500000000,0,25,25\n500000005,0,25,25\n", "gap.csv");
+  const std::string w = long_gap_warning(gap);
+  EXPECT_NE(w.find("gap.csv: a gap of 1.389e+05 h between the rows at t = 245 s and 500000000 s"), std::string::npos) << w;
+  EXPECT_NE(w.find("speed (6000 rpm)"), std::string::npos) << w;
+  const Recording sparse = parse_recording_csv(csv + "845,0,25,25\n1445,0,25,25\n", "sparse.csv");
+  EXPECT_EQ(long_gap_warning(sparse), "");  // 10 min apart: under an hour
+}
+
 // A validation table printed NMSE -9.9e27 for a constant -273.15 degC column (the mean's rounding
 // left 1e-25 K^2 of variance) and "--" for a constant 20 degC one: both have no variance.
 TEST(RecordingCsv, AConstantReferenceHasNoNmse) {
