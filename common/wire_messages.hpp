@@ -182,7 +182,7 @@ enum class ConfigKey : uint8_t {
                               // default 400 (20 mK/sqrt(s) random walk). 0 is out of range (NACK
                               // BadValue): a filter without process noise cannot follow anything
   KalmanMeasurementNoise = 0x06,  // Kalman r, (mK)^2; [1, 100000000], default 2500 (50 mK rms)
-  AlarmLatch = 0x07,          // 1 = ALARM stays until ACK_ALARM or M normal samples (diagnosis), 0 = clears with the cause; default 1
+  AlarmLatch = 0x07,          // 1 = ALARM stays until ACK_ALARM, 0 = clears after 60 normal samples (diagnosis_stage.hpp); default 1
   ChannelRole0 = 0x10,        // ChannelRole of channel 1 (keys 0x10..0x14 = channels 1..5)
 };
 const uint8_t kChannelRoleKeyFirst = 0x10;

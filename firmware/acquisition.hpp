@@ -93,7 +93,7 @@ class Acquisition : private detail_acq::AcquisitionScalars {
   static constexpr uint8_t kChannels = wire::kChannels;
   static constexpr uint8_t kBurnoutFs = 1;               // 470 Hz, 4 ms settling
   static constexpr uint32_t kBurnoutOpenCode = 0xFFF000;  // at/above: driven to full scale
-  static constexpr uint32_t kShortBelowQ16 = 500UL << 16; // 500 ohm: a PT1000 at -125 degC is 509 ohm
+  static constexpr uint32_t kShortBelowQ16 = 500UL << 16; // 500 ohm: a PT1000 at -125.15 degC (IEC 60751: 500.6 ohm at -125 degC)
   static constexpr uint16_t kRetryMs = 1000;              // chip missing: identify again after
   static constexpr uint32_t kRailMarginCodes = 16;        // codes this close to a rail: saturated
 
