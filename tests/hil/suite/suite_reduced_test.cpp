@@ -68,10 +68,10 @@ TEST(EffectSuiteReduced, ResidualLoopOnTheReducedSet) {
   const auto& drift = find(rep, "distractor_ambient_drift_r");
   EXPECT_FALSE(drift.claimed) << drift.effect;
 
-  // Clean data: no claim, except the one known gap -- the module's own Kalman filter is a real
-  // lag of the recorded temperatures (about 3.5 s at 5 s samples), which the loop may take for a
-  // sensor_lag (today it reports it as `partial`, not claimed). Anything else claimed, or a lag
-  // longer than one sample, fails.
+  // Clean data: no claim. The one tolerated exception: the module's own Kalman filter is a real
+  // lag of the recorded temperatures (about 3.5 s at 5 s samples), which a loop might take for a
+  // sensor_lag (before the measurement floor it was reported as `partial`; now the answer is
+  // `none`). Anything else claimed, or a lag longer than one sample, fails.
   const auto& clean = find(rep, "clean_r");
   if (clean.claimed) {
     EXPECT_EQ(clean.effect, "sensor_lag");
