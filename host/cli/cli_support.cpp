@@ -62,9 +62,9 @@ void refuse_non_finite_numbers(CLI::App& app) {
       "", "non-empty");
   for (CLI::Option* opt : app.get_options()) {
     const std::string type = opt->get_type_name();
+    if (opt->get_type_size() != 0) opt->check(not_empty);  // every option with a value (numbers: '' read as 0); not flags
     if (type.find("FLOAT") != std::string::npos) opt->check(finite);
     else if (type.find("INT") != std::string::npos) opt->check(representable);
-    else if (opt->get_type_size() != 0) opt->check(not_empty);  // text, paths; not flags
   }
   for (CLI::App* sub : app.get_subcommands([](CLI::App*) { return true; })) refuse_non_finite_numbers(*sub);
 }

@@ -282,10 +282,17 @@ std::vector<std::string> channel_map(const Network& net, const json& model_json,
           throw CommandError(kExitUsage, "--channels: '" + tok + "' (channel " + std::to_string(ch + 1) +
                                              ") is not a node of the model, 'ambient' or 'none'; nodes:" + nodes);
         }
+        for (int k = 0; k < ch; ++k)
+          if (o.channel_node[static_cast<std::size_t>(k)] == node)
+            throw CommandError(kExitUsage, "--channels: node '" + tok + "' on channel " + std::to_string(k + 1) + " and channel " +
+                                               std::to_string(ch + 1) + ": one probe per node");
         o.channel_node[static_cast<std::size_t>(ch)] = node;
       }
       ++ch;
     }
+    // "rear_bearing,housing" left ch3..ch5 silently unmodelled: say all five
+    if (ch != 5 || (!spec.empty() && spec.back() == ','))
+      throw CommandError(kExitUsage, "--channels '" + spec + "': give all five channels ch1..ch5 (a node, ambient or none each)");
   } else if (have_map) {
     // `btsm fit` writes one entry per channel and one ambient; a hand-edited map that says more
     // would be resolved by its last entry (two ambients made the spare probe the ambient).
@@ -376,6 +383,15 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   std::vector<Recording> calib;
   if (!a.calibrate.empty()) {
     calib = read_all(a.calibrate);
+    // The bands are set from each channel's column: a recording whose roles put the probes elsewhere
+    // than the model measures them calibrated each channel on another probe (validate and heat refuse it).
+    if (a.channels.empty()) {
+      try {
+        check_mapping_agrees_with_roles(net, calib, {}, "calibrate on recordings made with the probes where the model was fitted");
+      } catch (const std::invalid_argument& e) {
+        throw CommandError(kExitUsage, e.what());
+      }
+    }
     double top = 0;
     for (const auto& rec : calib)
       for (double v : rec.speed_rpm) top = std::max(top, v);
@@ -616,7 +632,8 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(CLI::ExistingFile);
     c->add_option("recordings", a->recordings, "Recording CSV files")->required()->check(CLI::ExistingFile);
     c->add_option("--plots", a->plots, "Directory for measured-vs-predicted and residual plots (PNG + SVG)");
-    c->add_option("--initial-rows", a->initial_rows, "Rows used to estimate the initial state (default 120)");
+    c->add_option("--initial-rows", a->initial_rows, "Rows used to estimate the initial state (default 120)")
+        ->check(CLI::Range(0.0, 1e9));  // -1 wrapped to 18446744073709551615 rows
     c->add_flag("--json", a->json_out, "Print metrics as JSON (nmse, rmse_K, max_abs_K per node; per recording details)");
     c->callback([a] { run_validate(*a); });
   }

@@ -48,8 +48,13 @@ void write_output_file(const std::string& path, std::string_view content, const 
   struct stat st {};
   if (::stat(path.c_str(), &st) == 0 && S_ISDIR(st.st_mode)) write_failed(path, what, "it is a directory");
   if (is_special_file(path)) {  // a device or pipe: no rename over it, write in place
-    const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC);
+    // Non-blocking open: a named pipe that no program reads blocked here for ever (after all the
+    // command's work); it fails at once with ENXIO instead. Writes block again once it is open.
+    const int fd = ::open(path.c_str(), O_WRONLY | O_CLOEXEC | O_NONBLOCK);
+    if (fd < 0 && errno == ENXIO) write_failed(path, what, "a named pipe that no program reads");
     if (fd < 0) write_failed(path, what, errno_text());
+    const int flags = ::fcntl(fd, F_GETFL);
+    if (flags >= 0) (void)::fcntl(fd, F_SETFL, flags & ~O_NONBLOCK);
     const bool ok = write_all(fd, content);
     const std::string why = errno_text();
     if (::close(fd) != 0 && ok) write_failed(path, what, errno_text());

@@ -232,9 +232,10 @@ AmbientProfile AmbientProfile::parse(const std::string& spec) {
     if (r.duration_s <= 0.0) throw std::invalid_argument(where + ": duration must be > 0");
     a.ramps_.push_back(r);
   }
-  for (double v : {a.start_c_}) {
-    if (v < -40.0 || v > 85.0) throw std::invalid_argument("ambient: start value outside -40..85 degC");
-  }
+  if (a.start_c_ < -40.0 || a.start_c_ > 85.0) throw std::invalid_argument("ambient: start value outside -40..85 degC");
+  for (std::size_t i = 0; i < a.ramps_.size(); ++i)  // a 500 degC room ran with exit 0
+    if (a.ramps_[i].target_c < -40.0 || a.ramps_[i].target_c > 85.0)
+      throw std::invalid_argument("ambient item " + std::to_string(i + 2) + ": target outside -40..85 degC");
   return a;
 }
 

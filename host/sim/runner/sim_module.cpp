@@ -191,11 +191,16 @@ void SimModule::thread_main() {
         }
       }
       const auto c0 = Clock::now();
+      const double before = sim_time_s();
       step_chunk(true);
       {
         std::lock_guard<std::mutex> lk(mu_);
         stats_.wall_time_s += std::chrono::duration<double>(Clock::now() - c0).count();
       }
+      // The board advances in its own ticks: what is left of a duration a hair above a whole tick
+      // (100.0000003 s, or 55,000 segments of 0.1 s summing to 5500.0000000025) cannot be run, and
+      // the loop spun on it for ever at full CPU. Nothing moved: the run is over.
+      if (!(sim_time_s() > before)) break;
       if (opts_.time_scale > 0.0) {
         // In slices, so that stop() is heard: at --time-scale 0.001 one chunk is minutes of wall
         // time, and one sleep_until ignored Ctrl-C and SIGTERM for that long.
@@ -219,7 +224,11 @@ void SimModule::thread_main() {
 void SimModule::run_for(double sim_s) {
   if (running_) throw std::logic_error("SimModule::run_for while the background thread runs");
   const double end = std::min(sim_time_s() + sim_s, opts_.duration_s);
-  while (sim_time_s() < end - 1e-9) step_chunk(false, end);
+  while (sim_time_s() < end - 1e-9) {
+    const double before = sim_time_s();
+    step_chunk(false, end);
+    if (!(sim_time_s() > before)) break;  // below the board's tick: nothing left to run (see run())
+  }
 }
 
 void SimModule::step_chunk(bool may_block) { step_chunk(may_block, opts_.duration_s); }

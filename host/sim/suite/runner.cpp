@@ -60,11 +60,13 @@ pid_t spawn(const std::vector<std::string>& argv, const std::string& out_path, c
   return pid;
 }
 
+// The child's last word: its last line that says something (CLI11 ends a usage error with "Run
+// with --help for more information.", which is not the cause).
 std::string last_line(const fs::path& p) {
   std::ifstream in(p);
   std::string line, last;
   while (std::getline(in, line))
-    if (!line.empty()) last = line;
+    if (!line.empty() && line.rfind("Run with --help", 0) != 0) last = line;
   return last;
 }
 

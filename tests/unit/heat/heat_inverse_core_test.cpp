@@ -149,6 +149,29 @@ TEST(HeatInverse, AStepStartsAtEachSpeedChange) {
   EXPECT_LT(worst, 1.0) << "W off the true level on some step";
 }
 
+// Few long pieces against fast modes: the smoother's covariance recursion lost precision
+// ("effective parameters 1e29", heat --step 900 on 5 s rows refused); such a point is solved
+// stacked. Every point of the scan has a degree of freedom within 0..N and GCV picks one.
+TEST(HeatInverse, LongStepsKeepAValidScan) {
+  const auto speed = [](double t) { return t < 10800 ? 6000.0 : 0.0; };
+  const auto heat = [&](double t) -> Eigen::Vector2d { return {speed(t) / 300.0, speed(t) / 900.0}; };
+  const InverseProblem p = make_problem(4321, 5.0, 0.0006, 9, false, speed, heat);
+  for (double step : {900.0, 3600.0}) {
+    HeatInverseOptions o = cn_options(TikhonovOrder::One);
+    o.step_s = step;
+    o.noise_sigma_k = 0.0;
+    o.break_at_speed_changes = true;
+    const HeatInverseResult r = solve_heat_inverse(p, o);
+    for (const auto& pt : r.scan) {
+      EXPECT_GE(pt.dof, 0.0) << step << " s steps, alpha " << pt.alpha;
+      EXPECT_LE(pt.dof, 3.0 * 4321) << step << " s steps, alpha " << pt.alpha;
+    }
+    EXPECT_GT(r.dof, 0.0);
+    EXPECT_LT(r.residual_rms_k, 2.0 * 0.0006) << step;
+    EXPECT_NEAR(r.heat_w(0, 0), 20.0, 1.0) << step;  // 6000 rpm / 300
+  }
+}
+
 TEST(HeatInverse, LCurveAndTikhonov0RunAndReportTheScan) {
   const InverseProblem p = make_problem(241, 5.0, 0.005, 3, false);
   HeatInverseOptions o = cn_options(TikhonovOrder::Zero);
