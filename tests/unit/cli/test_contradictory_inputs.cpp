@@ -94,6 +94,7 @@ TEST(Metadata, ProbesElsewhereThanTheModelSaysAreRefusedWhereAModelIsScored) {
   const std::string swapped = "its channel_roles put node 'front_bearing' on T1, but the model measures it with T3 (T3 is rear_bearing there)";
   expect_refusals(d, {{"validate model.json swap.csv", swapped},
                       {"heat model.json swap.csv", swapped},
+                      {"reduce model.json --speeds 4000,6000 --calibrate-bands swap.csv --out r.json", swapped},
                       {"residual --network model.json --use-values --fit swap.csv --check check.csv", swapped},
                       {"validate model.json noshaft.csv", "put node 'shaft' on no channel, but the model measures it with T4 (T4 is spare there)"}});
   const CliResult ok = run_btsm(d, "validate model.json agree.csv");

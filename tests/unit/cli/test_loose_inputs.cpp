@@ -209,7 +209,24 @@ TEST(LooseInputs, EmptyValuesAndOutputsThatCannotBeMadeAreRefusedFirst) {
                       {"fit '' --preset spindle4 --out m.json", "File does not exist"},
                       {"record --port /nonexistent/tty --out " + d.path + " --samples 2", "is a directory"},
                       {"record --port /nonexistent/tty --out nodir/x.csv --samples 2", "its directory nodir does not exist"},
-                      {"effect-suite --list --timeout 0", "--timeout"}});
+                      {"effect-suite --list --timeout 0", "--timeout"},
+                      {"record --port /nonexistent/tty --out r.csv --samples ''", "--samples: an empty value"},
+                      {"sim-module --pty p --profile 1m@0 --ambient 20,1h@500", "target outside -40..85 degC"}});
+}
+
+// The fourth probe (27 Nov): a run a hair above a whole board step spun for ever; --channels with
+// two entries left three channels unmodelled; a negative --initial-rows wrapped to 2^64 - 1.
+TEST(LooseInputs, FourthProbeRunsEndAndChannelMapsAreWhole) {
+  ScratchDir d;
+  const CliResult run = run_btsm(d, "sim-module --pty p --no-wait --profile 1m@0 --duration 100.0000003", 30);
+  EXPECT_EQ(run.code, 0) << run.err;  // 137: killed at the time limit, the old endless loop
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(200));
+  expect_refusals(d, {{"reduce model.json --speeds 4000,6000 --channels rear_bearing,housing --out r.json", "give all five channels"},
+                      {"reduce model.json --speeds 4000,6000 --channels rear_bearing,rear_bearing,none,ambient,none --out r.json",
+                       "one probe per node"},
+                      {"validate model.json rec.csv --initial-rows -1", "--initial-rows"}});
+  EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
 // A heat source of 1e300 W (finite, inside widened bounds) overflowed the balanced analysis to
