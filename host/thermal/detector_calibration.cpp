@@ -70,12 +70,21 @@ std::array<std::vector<double>, kModelChannels> replay_residuals(const ReducedMo
                                               "replayed for more than {:.0f} steps of {:g} s across it; split the recording there",
                                               rec.source, rec.time_s[i] - rec.time_s[i - 1], rec.time_s[i], i + 1,
                                               kMaxStepsPerGap, dt));
+    // Across a gap (lost samples: more than one step before this row) the module ran on readings
+    // the recording does not hold: the steps in between hold the row before's speed and ambient
+    // (zero-order hold) and give no residual; only the step at this row is compared with it. Each
+    // of them compared with the reading after the gap made a 10-minute gap pile up 21 K min of
+    // evidence and widened the bands 20-fold.
+    const auto prev_rpm = static_cast<uint16_t>(std::clamp(std::lround(rec.speed_rpm[i - 1]), 0L, 65535L));
+    const auto prev_amb = static_cast<int32_t>(std::lround(rec.ambient_c[i - 1] * 1000));
     while (rec.time_s[i] + 1e-9 >= next_step) {
+      const bool at_row = rec.time_s[i] + 1e-9 < next_step + dt;  // the last step up to this row
       int32_t pred[kModelChannels];
-      step(q, st, rpm, amb, pred);
-      for (int j = 0; j < kModelChannels; ++j)
-        if (col[j] >= 0 && meas[j] != kModelNoPrediction && pred[j] != kModelNoPrediction)
-          out[static_cast<std::size_t>(j)].push_back((meas[j] - pred[j]) / 1000.0);
+      step(q, st, at_row ? rpm : prev_rpm, at_row ? amb : prev_amb, pred);
+      if (at_row)
+        for (int j = 0; j < kModelChannels; ++j)
+          if (col[j] >= 0 && meas[j] != kModelNoPrediction && pred[j] != kModelNoPrediction)
+            out[static_cast<std::size_t>(j)].push_back((meas[j] - pred[j]) / 1000.0);
       next_step += dt;
     }
   }

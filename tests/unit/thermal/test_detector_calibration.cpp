@@ -40,6 +40,39 @@ Recording simulate(const Network& net, const Eigen::VectorXd& p, const std::vect
   return r;
 }
 
+// Lost samples: a 10-minute gap in a calibration recording was replayed as 120 steps each compared
+// with the reading after the gap (and at its speed), which piled up evidence and widened the bands
+// 20-fold. The steps across a gap give no residual: the bands are those of the recording without it.
+TEST(DetectorCalibration, AGapOfLostSamplesDoesNotWidenTheBands) {
+  const Network net = preset_network("spindle4");
+  const Eigen::VectorXd p = test::true_parameters(net);
+  ReduceOptions o;
+  o.speeds_rpm = {4000, 6000, 8000};
+  o.channel_node = {{0, 1, 2, -1, 3}};
+  const ScheduledReduction red = build_scheduled_model(net, p, o);
+  const double h = 3600;
+  const Recording whole = simulate(net, p, {{6000, 4 * h}, {0, 3 * h}});
+  Recording gap = whole;  // rows 1000..1119 lost: 10 min while warming up
+  const auto drop = [](auto& v) { v.erase(v.begin() + 1000, v.begin() + 1120); };
+  drop(gap.time_s);
+  drop(gap.speed_rpm);
+  drop(gap.ambient_c);
+  Eigen::MatrixXd t(whole.temp_c.rows() - 120, whole.temp_c.cols());
+  t << whole.temp_c.topRows(1000), whole.temp_c.bottomRows(whole.temp_c.rows() - 1120);
+  gap.temp_c = t;
+  const std::array<std::string, kModelChannels> cols = {"T1", "T2", "T3", "", "T5"};
+  const DetectorCalibration a = calibrate_detector(red, {&whole}, cols, DetectorRule{});
+  const DetectorCalibration b = calibrate_detector(red, {&gap}, cols, DetectorRule{});
+  for (int j : {0, 1, 2, 4}) {
+    const auto c = static_cast<std::size_t>(j);
+    EXPECT_NEAR(b.channels[c].detector.alarm_evidence_K_min, a.channels[c].detector.alarm_evidence_K_min,
+                0.05 * a.channels[c].detector.alarm_evidence_K_min) << j;
+    EXPECT_NEAR(b.channels[c].detector.low_warn_evidence_K_min, a.channels[c].detector.low_warn_evidence_K_min,
+                0.05 * a.channels[c].detector.low_warn_evidence_K_min) << j;
+  }
+  EXPECT_EQ(replay_residuals(red.quantized, gap, cols)[0].size(), replay_residuals(red.quantized, whole, cols)[0].size() - 120);
+}
+
 TEST(DetectorCalibration, FollowsTheStatedRuleAndSeparatesNormalFromAFault) {
   const Network net = preset_network("spindle4");
   const Eigen::VectorXd p = test::true_parameters(net);
