@@ -6,7 +6,11 @@
 #include "host/link/serial_transport.hpp"
 #include "host/link/usb_devices.hpp"
 
+#include <fcntl.h>
 #include <sys/stat.h>
+#include <unistd.h>
+
+#include <cerrno>
 
 #include <algorithm>
 
@@ -49,9 +53,21 @@ std::string serial_port_for(const LinkSpec& spec) {
     // A port that does not exist yet is left to the programmer (a dry run prints the command for
     // later); one that exists must be a character device: avrdude was handed a regular file.
     struct stat st {};
-    if (::stat(spec.port.c_str(), &st) == 0 && !S_ISCHR(st.st_mode))
-      throw LinkError(LinkErrorKind::kNoDevice, "serial " + spec.port + ": " + (S_ISDIR(st.st_mode) ? "a directory, not" : "not") +
-                                                    " a serial device; `btsm list` shows serial adapters");
+    if (::stat(spec.port.c_str(), &st) == 0) {
+      bool tty = false;
+      if (S_ISCHR(st.st_mode)) {  // /dev/null, /dev/zero are character devices too: a tty answers tcgetattr
+        const int fd = ::open(spec.port.c_str(), O_RDWR | O_NOCTTY | O_NONBLOCK | O_CLOEXEC);
+        if (fd >= 0) {
+          tty = ::isatty(fd) != 0;
+          ::close(fd);
+        } else {
+          tty = errno == EBUSY || errno == EACCES;  // in use or not ours: a real port, avrdude says the rest
+        }
+      }
+      if (!tty)
+        throw LinkError(LinkErrorKind::kNoDevice, "serial " + spec.port + ": " + (S_ISDIR(st.st_mode) ? "a directory, not" : "not") +
+                                                      " a serial device; `btsm list` shows serial adapters");
+    }
     return spec.port;
   }
   if (!spec.usb.empty()) return tty_for_usb(spec.usb, usb_devices(spec.sysfs_root));

@@ -294,6 +294,10 @@ TEST(LinkCli, FlashFirmwareDryRunPatchesTheKey) {
   EXPECT_EQ(r.code, 3) << r.err;
   EXPECT_NE(r.err.find("not a serial device"), std::string::npos) << r.err;
   EXPECT_FALSE(std::filesystem::exists(home.path + "/q.hex"));
+  r = run(home, "flash-firmware --device-id 0000de71 --hex " + home.path + "/fw.hex --out " + home.path +
+                    "/q.hex --port /dev/null --avrdude /bin/true");  // a character device, but no tty
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_FALSE(std::filesystem::exists(home.path + "/q.hex"));
   std::ofstream(home.path + "/eof_data.hex") << ":0200000101FFFD\n";
   r = run(home, "flash-firmware --device-id 0000de71 --hex " + home.path + "/eof_data.hex --out " + home.path +
                     "/q.hex --dry-run");
