@@ -126,6 +126,11 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     } catch (const nlohmann::json::exception& e) {
       throw io::InputError((dir / "truth.json").string() + ": not a case's truth: " + e.what());
     }
+    // A reused answer runs nothing, but its truth is held to what a run would check: its run files in
+    // the case's folder (residual_command), and a kind the scoring knows ("bogus" counted as quiet).
+    (void)residual_command(opts.btsm_path.empty() ? std::string("btsm") : opts.btsm_path, dir.string(), {});
+    if (const std::string kind = truth.at("kind").get<std::string>(); kind != "effect" && kind != "clean" && kind != "distractor")
+      throw io::InputError((dir / "truth.json").string() + ": kind '" + kind + "' is not effect, clean or distractor");
     CaseResult r;
     std::error_code rename_error;
     std::string not_an_answer;  // a child that exited 0 but printed no residual answer (another program as --btsm)

@@ -6,10 +6,12 @@
 #include "refusals.hpp"
 
 #include <gtest/gtest.h>
+#include <nlohmann/json.hpp>
 
 #include <functional>
 #include <string>
 #include <utility>
+#include <vector>
 
 namespace btsm::test {
 namespace {
@@ -212,6 +214,28 @@ TEST(LooseInputs, EmptyValuesAndOutputsThatCannotBeMadeAreRefusedFirst) {
                       {"effect-suite --list --timeout 0", "--timeout"},
                       {"record --port /nonexistent/tty --out r.csv --samples ''", "--samples: an empty value"},
                       {"sim-module --pty p --profile 1m@0 --ambient 20,1h@500", "target outside -40..85 degC"}});
+}
+
+// --score-only --reuse ran nothing and so checked nothing of the truth: a run file "/etc/passwd" or
+// a kind "bogus" was scored. Held to what a run checks now.
+TEST(LooseInputs, AReusedAnswerIsHeldToTheTruthChecksOfARun) {
+  ScratchDir d;
+  const CliResult gen = run_btsm(d, "effect-suite --set reduced --only clean_r --generate-only --out s", 120);
+  ASSERT_EQ(gen.code, 0) << gen.err;
+  const std::string truth_path = d.file("s/cases/clean_r/truth.json");
+  const nlohmann::json truth = nlohmann::json::parse(read_text(truth_path));
+  const std::string answer = R"({"verdict":"none","effect":"none","nodes":[],"rmse_before_K":0.003,"rmse_after_K":0.003})";
+  for (const auto& [edit, says] : std::vector<std::pair<std::function<void(nlohmann::json&)>, std::string>>{
+           {[](nlohmann::json& t) { t["runs"][0]["file"] = "/etc/passwd"; }, "not a file name in the case's folder"},
+           {[](nlohmann::json& t) { t["kind"] = "bogus"; }, "kind 'bogus'"}}) {
+    nlohmann::json t = truth;
+    edit(t);
+    write_text(truth_path, t.dump(1));
+    write_text(d.file("s/cases/clean_r/residual.json"), answer);  // newer than the truth: reused
+    const CliResult r = run_btsm(d, "effect-suite --set reduced --only clean_r --score-only --reuse --out s --btsm /bin/false");
+    EXPECT_EQ(r.code, 2) << r.err;
+    EXPECT_NE(r.err.find(says), std::string::npos) << r.err;
+  }
 }
 
 // The fourth probe (27 Nov): a run a hair above a whole board step spun for ever; --channels with
