@@ -253,6 +253,23 @@ struct ReduceArgs {
 // said), or `--channels` (five entries: node name, 'ambient' or 'none'), or -- for a model JSON
 // without a map -- columns T1..T5 as channels 1..5 with the ambient on channel 4. Returns a line
 // per channel for the console.
+// The blob's refusal with the channel it is about and that channel's detector, so a user sees which
+// value is beyond its field ("limit out of range" alone named nothing).
+std::string blob_problem(const ScheduledReduction& r) {
+  std::string text = model_status_name(r.quantize_status.status);
+  const uint8_t ch = r.quantize_status.channel;
+  if (ch < 5) {
+    const ChannelDetector& d = r.model.detector[ch];
+    text += fmt::format(" -- ch{}: drift {:.4g} K, lower drift {:.4g} K, WARN {:.4g} K min, ALARM {:.4g} K min, lower WARN {:.4g} K min, "
+                        "limit {:.4g} degC, rise {:.4g} K/min",
+                        ch + 1, d.drift_K, d.low_drift_K, d.warn_evidence_K_min, d.alarm_evidence_K_min, d.low_warn_evidence_K_min,
+                        d.abs_limit_c, d.max_rise_K_per_min);
+  } else if (r.quantize_status.breakpoint != 0xFF) {
+    text += fmt::format(" -- breakpoint {}", r.quantize_status.breakpoint);
+  }
+  return text;
+}
+
 std::vector<std::string> channel_map(const Network& net, const json& model_json, const std::string& spec, ReduceOptions& o) {
   std::vector<std::string> recorded_role(5);
   o.ambient_channel = -1;
@@ -416,7 +433,7 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     throw CommandError(kExitUsage, e.what());
   }
   if (!r.quantize_status.ok())
-    throw CommandError(kExitFailure, std::string("the model does not fit the module's blob: ") + model_status_name(r.quantize_status.status));
+    throw CommandError(kExitFailure, std::string("the model does not fit the module's blob: ") + blob_problem(r));
   json calibration;
   if (!a.calibrate.empty()) {
     std::vector<const Recording*> ptrs;
@@ -460,7 +477,9 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     }
     requantize(r);
     if (!r.quantize_status.ok())
-      throw CommandError(kExitFailure, std::string("the calibrated detector does not fit the blob: ") + model_status_name(r.quantize_status.status));
+      throw CommandError(kExitFailure, std::string("the calibrated detector does not fit the blob: ") + blob_problem(r) +
+                                           " (a calibration recording above the top breakpoint, or a --design-heat too small to "
+                                           "rise above the model's own error, asks for bands beyond the blob's fields)");
     std::cerr << "reduce: detector calibrated on " << cal.recordings << " recordings (" << cal.rule << "):\n";
     calibration = {{"rule", cal.rule}, {"recordings", a.calibrate}, {"duty_cycle", r.duty.profile}, {"channels", json::array()}};
     for (int ch = 0; ch < 5; ++ch) {
