@@ -40,16 +40,21 @@ Recording simulate(const Network& net, const Eigen::VectorXd& p, const std::vect
   return r;
 }
 
+// spindle4 reduced at 4000, 6000 and 8000 rpm, ch5 on the shaft.
+ScheduledReduction reduce_at_warmup_speeds(const Network& net, const Eigen::VectorXd& p) {
+  ReduceOptions o;
+  o.speeds_rpm = {4000, 6000, 8000};
+  o.channel_node = {{0, 1, 2, -1, 3}};
+  return build_scheduled_model(net, p, o);
+}
+
 // Lost samples: a 10-minute gap in a calibration recording was replayed as 120 steps each compared
 // with the reading after the gap (and at its speed), which piled up evidence and widened the bands
 // 20-fold. The steps across a gap give no residual: the bands are those of the recording without it.
 TEST(DetectorCalibration, AGapOfLostSamplesDoesNotWidenTheBands) {
   const Network net = preset_network("spindle4");
   const Eigen::VectorXd p = test::true_parameters(net);
-  ReduceOptions o;
-  o.speeds_rpm = {4000, 6000, 8000};
-  o.channel_node = {{0, 1, 2, -1, 3}};
-  const ScheduledReduction red = build_scheduled_model(net, p, o);
+  const ScheduledReduction red = reduce_at_warmup_speeds(net, p);
   const double h = 3600;
   const Recording whole = simulate(net, p, {{6000, 4 * h}, {0, 3 * h}});
   Recording gap = whole;  // rows 1000..1119 lost: 10 min while warming up
@@ -76,10 +81,7 @@ TEST(DetectorCalibration, AGapOfLostSamplesDoesNotWidenTheBands) {
 TEST(DetectorCalibration, FollowsTheStatedRuleAndSeparatesNormalFromAFault) {
   const Network net = preset_network("spindle4");
   const Eigen::VectorXd p = test::true_parameters(net);
-  ReduceOptions o;
-  o.speeds_rpm = {4000, 6000, 8000};
-  o.channel_node = {{0, 1, 2, -1, 3}};
-  const ScheduledReduction red = build_scheduled_model(net, p, o);
+  const ScheduledReduction red = reduce_at_warmup_speeds(net, p);
   ASSERT_TRUE(red.quantize_status.ok());
   ASSERT_FALSE(red.duty.residual_K[0].empty());
   ASSERT_EQ(red.design_fault.rise_K[0].size(), 1440u);
