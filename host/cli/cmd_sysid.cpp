@@ -689,9 +689,13 @@ void register_sysid_commands(CLI::App& app) {
     c->add_flag("--no-carriers", a->no_carriers, "Every channel's model plain (no channel rides on a slower channel's model)");
     c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the stop poles (default: the middle breakpoint)")
         ->check(non_negative_number());
-    c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
+    auto* calibrate = c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
         ->check(CLI::ExistingFile);
-    c->add_option("--margin", a->rule.margin, "Calibration: WARN = margin x worst evidence + floor (default 1.5)");
+    // The margin shapes only the calibration: without --calibrate-bands it did nothing, silently, and
+    // one below 1 was refused only after the reduction's seconds of work (probe 4).
+    c->add_option("--margin", a->rule.margin, "Calibration: WARN = margin x worst evidence + floor (default 1.5)")
+                       ->check(CLI::Range(1.0, 100.0))
+                       ->needs(calibrate);
     c->add_option("--design-heat", a->design_heat_w,
                   "Calibration: the extra heat (W) at a channel's node whose ALARM the drift makes soonest (default 10)");
     c->add_option("--drift", a->detector.drift_K, "Detector drift in K: residual above the model forgiven per sample (default 0.5)");

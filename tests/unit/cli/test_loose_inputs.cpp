@@ -249,7 +249,9 @@ TEST(LooseInputs, FourthProbeRunsEndAndChannelMapsAreWhole) {
   expect_refusals(d, {{"reduce model.json --speeds 4000,6000 --channels rear_bearing,housing --out r.json", "give all five channels"},
                       {"reduce model.json --speeds 4000,6000 --channels rear_bearing,rear_bearing,none,ambient,none --out r.json",
                        "one probe per node"},
-                      {"validate model.json rec.csv --initial-rows -1", "--initial-rows"}});
+                      {"validate model.json rec.csv --initial-rows -1", "--initial-rows"},
+                      {"reduce model.json --speeds 4000,6000 --margin 2 --out r.json", "--margin requires --calibrate-bands"},
+                      {"reduce model.json --speeds 4000,6000 --calibrate-bands rec.csv --margin 0.5 --out r.json", "--margin"}});
   EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
