@@ -127,8 +127,9 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
       throw io::InputError((dir / "truth.json").string() + ": not a case's truth: " + e.what());
     }
     // A reused answer runs nothing, but its truth is held to what a run would check: its run files in
-    // the case's folder (residual_command), and a kind the scoring knows ("bogus" counted as quiet).
-    (void)residual_command(opts.btsm_path.empty() ? std::string("btsm") : opts.btsm_path, dir.string(), {});
+    // the case's folder (residual_command, which a run already went through before it was started),
+    // and a kind the scoring knows ("bogus" counted as quiet).
+    if (ch.pid < 0) (void)residual_command(opts.btsm_path.empty() ? std::string("btsm") : opts.btsm_path, dir.string(), {});
     if (const std::string kind = truth.at("kind").get<std::string>(); kind != "effect" && kind != "clean" && kind != "distractor")
       throw io::InputError((dir / "truth.json").string() + ": kind '" + kind + "' is not effect, clean or distractor");
     CaseResult r;
