@@ -88,6 +88,7 @@ void write_patched_image(HexImage img, uint32_t id, const DeviceKey& key, const 
 
 void run_flash_firmware(const FlashFirmwareArgs& a) {
   const uint32_t id = parse_device_id_or_throw(a.device_id);
+  check_link_syntax(a.link);  // `--usb xyz` was exit 3 (no device) here, exit 2 in info/record
   const std::string out = a.out.empty() ? "btsm-fw-" + device_id_text(id) + ".hex" : a.out;
   try {  // the patched image over its own input would replace the build's image with one module's key
     io::refuse_output_over_input(out, "--out", {a.hex.empty() ? default_hex_path() : a.hex, a.link.port});

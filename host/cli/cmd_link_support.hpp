@@ -43,6 +43,8 @@ void guarded(F&& body) {
 }
 
 link::LinkSpec spec_from(const LinkOptions& o);
+// A malformed --ble/--rfcomm/--usb is a bad argument (exit 2), found before anything is opened.
+void check_link_syntax(const LinkOptions& o);
 
 // An open transport and the session that speaks the protocol over it (the session borrows it).
 struct Connection {

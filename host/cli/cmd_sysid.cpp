@@ -2,6 +2,7 @@
 #include "cli_support.hpp"
 #include "commands.hpp"
 
+#include "common/model_blob.hpp"
 #include "host/io/output_file.hpp"
 #include "host/thermal/column_map.hpp"
 #include "host/thermal/detector_calibration.hpp"
@@ -698,14 +699,20 @@ void register_sysid_commands(CLI::App& app) {
                        ->needs(calibrate);
     c->add_option("--design-heat", a->design_heat_w,
                   "Calibration: the extra heat (W) at a channel's node whose ALARM the drift makes soonest (default 10)");
-    c->add_option("--drift", a->detector.drift_K, "Detector drift in K: residual above the model forgiven per sample (default 0.5)");
-    c->add_option("--low-drift", a->detector.low_drift_K, "The same below the model, K (default 0.5)");
+    // The blob holds drift and rise in mK as 16 bits and the limit within the probes' IEC 60751
+    // range: a value outside is a bad argument named here, not a blob refusal after the reduction.
+    const auto blob_mK16 = CLI::Range(0.0, 65.535);
+    const auto probe_range_c = CLI::Range(kModelMinAbsLimitMk / 1000.0, kModelMaxAbsLimitMk / 1000.0);
+    c->add_option("--drift", a->detector.drift_K, "Detector drift in K: residual above the model forgiven per sample (default 0.5)")
+        ->check(blob_mK16);
+    c->add_option("--low-drift", a->detector.low_drift_K, "The same below the model, K (default 0.5)")->check(blob_mK16);
     c->add_option("--warn-evidence", a->detector.warn_evidence_K_min, "WARN threshold of the evidence in K min (default 2)");
     c->add_option("--alarm-evidence", a->detector.alarm_evidence_K_min, "ALARM threshold of the evidence in K min (default 4)");
     c->add_option("--low-warn-evidence", a->detector.low_warn_evidence_K_min,
                   "WARN threshold for a probe colder than its model, K min (default 4; 0 = off)");
-    c->add_option("--abs-limit", a->detector.abs_limit_c, "Absolute temperature limit in degC (default 80)");
-    c->add_option("--max-rise", a->detector.max_rise_K_per_min, "Maximum rate of rise in K/min (default 2; 0 = off)");
+    c->add_option("--abs-limit", a->detector.abs_limit_c, "Absolute temperature limit in degC (default 80)")->check(probe_range_c);
+    c->add_option("--max-rise", a->detector.max_rise_K_per_min, "Maximum rate of rise in K/min (default 2; 0 = off)")
+        ->check(blob_mK16);
     c->add_flag("--force", a->force,
                 "Accept hand-set detector thresholds the model's own error would reach, and speeds where the model is off");
     c->add_flag("--json", a->json_out, "Print the reduced model JSON to stdout");

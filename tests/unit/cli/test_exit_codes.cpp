@@ -45,11 +45,15 @@ TEST(CliExitCodes, MalformedAddressesAndSpeedsAreTwo) {
   ScratchDir d;
   write_text(d.file("model.json"), spindle4_model_json());
   for (const char* args : {"info --ble nonsense", "info --ble AA:BB:CC:DD:EE:FF/sideways", "info --usb zz",
-                           "info --rfcomm 12:34", "monitor --usb 2341", "record --ble x --out r.csv"}) {
+                           "info --rfcomm 12:34", "monitor --usb 2341", "record --ble x --out r.csv",
+                           // flash-firmware said "bad --usb" with exit 3, a missing device (probe 4)
+                           "flash-firmware --device-id 0000de70 --dry-run --usb xyz",
+                           "flash-firmware --device-id 0000de70 --dry-run --usb 0x2341:0x0043"}) {
     const CliResult r = run_btsm(d, args);
     EXPECT_EQ(r.code, 2) << args << "\n" << r.err;
     EXPECT_NE(r.err.find("bad"), std::string::npos) << args << "\n" << r.err;
   }
+  EXPECT_FALSE(file_exists(d.file("btsm-fw-0000de70.hex")));
   const CliResult sp = run_btsm(d, "reduce model.json --speeds 6000,4000 --out r.json");
   EXPECT_EQ(sp.code, 2) << sp.err;
   EXPECT_NE(sp.err.find("--speeds: '6000,4000': each in 1..65534 rpm, strictly ascending"), std::string::npos) << sp.err;

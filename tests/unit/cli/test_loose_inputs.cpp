@@ -251,7 +251,13 @@ TEST(LooseInputs, FourthProbeRunsEndAndChannelMapsAreWhole) {
                        "one probe per node"},
                       {"validate model.json rec.csv --initial-rows -1", "--initial-rows"},
                       {"reduce model.json --speeds 4000,6000 --margin 2 --out r.json", "--margin requires --calibrate-bands"},
-                      {"reduce model.json --speeds 4000,6000 --calibrate-bands rec.csv --margin 0.5 --out r.json", "--margin"}});
+                      {"reduce model.json --speeds 4000,6000 --calibrate-bands rec.csv --margin 0.5 --out r.json", "--margin"},
+                      // the blob refused these after the reduction (exit 1); the parser names the option
+                      {"reduce model.json --speeds 4000,6000 --force --abs-limit 900 --out r.json", "--abs-limit"},
+                      {"reduce model.json --speeds 4000,6000 --force --abs-limit -300 --out r.json", "--abs-limit"},
+                      {"reduce model.json --speeds 4000,6000 --force --drift 1e9 --out r.json", "--drift"},
+                      {"reduce model.json --speeds 4000,6000 --force --low-drift -0.1 --out r.json", "--low-drift"},
+                      {"reduce model.json --speeds 4000,6000 --max-rise -1 --out r.json", "--max-rise"}});
   EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 
