@@ -1,6 +1,9 @@
 // btsm set-speed | set-config | get-config | ack-alarm: single requests to the module.
 #include "cmd_link_support.hpp"
+#include "common/model_blob.hpp"
 #include "common/wire_messages.hpp"
+#include "host/link/model_flash.hpp"
+#include "host/link/recorder.hpp"
 
 #include <fmt/core.h>
 
@@ -103,6 +106,21 @@ std::string config_value_text(uint8_t key, int32_t value) {
   return std::to_string(value);
 }
 
+// A role change can leave the active model's channel map behind (probe 5: the ambient role moved
+// away, and the module showed NORMAL without predicting anything): said as `info` says it.
+void warn_about_active_model(Session& session) {
+  try {
+    const ActiveModelMap am = read_active_model_map(session);
+    if (am.version != kReducedModelVersion) return;
+    const ChannelMapCheck mc = check_channel_map(am.roles, read_channel_roles(session).role);
+    for (const auto& w : mc.conflicts)
+      std::cerr << "set-config: WARNING: the active model no longer fits the roles: " << w << "\n";
+    for (const auto& w : mc.warnings) std::cerr << "set-config: warning: " << w << "\n";
+  } catch (const link::NackError&) {
+    // firmware without MODEL_READ/GET_CONFIG: `info` says what it can
+  }
+}
+
 void run_set_config(const SetConfigArgs& a) {
   const uint8_t key = parse_config_key(a.key);
   const int32_t value = parse_config_value(key, a.value);
@@ -127,8 +145,26 @@ void run_set_config(const SetConfigArgs& a) {
       // firmware without GET_CONFIG cannot be asked; `record` checks the roles it reports
     }
   }
+  const bool role_key = key >= wire::kChannelRoleKeyFirst && key <= wire::kChannelRoleKeyLast;
+  // Every channel disabled: the module sends no sample at all, and `monitor` can only blame the link.
+  if (role_key && value == static_cast<int32_t>(wire::ChannelRole::Disabled)) {
+    const uint8_t self = static_cast<uint8_t>(key - wire::kChannelRoleKeyFirst);
+    bool another = false;
+    try {
+      for (uint8_t ch = 0; ch < kChannels && !another; ++ch)
+        another = ch != self && conn.session->get_config(wire::channel_role_key(ch)).value !=
+                                    static_cast<int32_t>(wire::ChannelRole::Disabled);
+    } catch (const link::NackError&) {
+      another = true;  // cannot be asked: let the module decide
+    }
+    if (!another)
+      throw CommandError(kExitUsage, fmt::format("{} disabled would disable the last channel in use: the module would send "
+                                                 "no sample at all (give another channel a role first)",
+                                                 wire::config_key_name(key)));
+  }
   conn.session->set_config(key, value);
   std::cerr << fmt::format("set-config: {} = {} acknowledged\n", wire::config_key_name(key), config_value_text(key, value));
+  if (role_key) warn_about_active_model(*conn.session);
   if (!shared_with.empty())
     std::cerr << fmt::format("set-config: WARNING: channel {} has the role {} too; a role belongs to one channel, and "
                              "`record` refuses to start until each has its own (give channel {} another role)\n",

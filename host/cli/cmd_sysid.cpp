@@ -424,9 +424,14 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
                        "detector: need --drift > 0, --low-drift > 0, 0 < --warn-evidence < --alarm-evidence, --low-warn-evidence >= 0");
   std::cerr << "reduce: " << o.speeds_rpm.size() << " speeds, channel map:\n";
   for (const auto& l : map_lines) std::cerr << "  " << l << "\n";
+  // Probe 5 (P1): this was a warning; the model then flashed, the module showed NORMAL on every
+  // sample and a 30 W bearing fault never ALARMed. A model that predicts nothing is no model.
   if (o.ambient_channel < 0)
-    std::cerr << "reduce: WARNING: no channel is the ambient: the module predicts relative to its ambient channel and "
-                 "would make no prediction with this model (say which channel with --channels ...,ambient,...)\n";
+    throw CommandError(kExitUsage, std::string("no channel is the ambient (") +
+                                       (a.channels.empty() ? "the model's channel_map" : "--channels '" + a.channels + "'") +
+                                       "): the module predicts every channel relative to its ambient channel and would "
+                                       "predict nothing, so no fault would ever be flagged; say which channel reads the room "
+                                       "air with --channels ...,ambient,...");
   ScheduledReduction r;
   try {
     r = build_scheduled_model(net, model.params, o);

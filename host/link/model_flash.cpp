@@ -124,6 +124,16 @@ ChannelMapCheck check_channel_map(const uint8_t model_roles[5], const uint8_t mo
     }
     c.channels.push_back(ch);
   }
+  // The module predicts every channel relative to the ambient channel: a model without one
+  // predicts nothing and reports NORMAL for ever (probe 5: a 30 W fault never ALARMed).
+  bool has_ambient = false, predicts = false;
+  for (int j = 0; j < 5; ++j) {
+    has_ambient = has_ambient || model_roles[j] == kModelRoleAmbient;
+    predicts = predicts || (model_roles[j] != kModelRoleNotModelled && model_roles[j] != kModelRoleAmbient);
+  }
+  if (predicts && !has_ambient)
+    c.conflicts.push_back("the model has no ambient channel: the module predicts every channel relative to its ambient "
+                          "channel, so it would predict nothing and flag no fault (reduce again with --channels ...,ambient,...)");
   return c;
 }
 

@@ -22,6 +22,14 @@ inline std::string spindle4_model_json(const std::function<void(nlohmann::json& 
   j["network"] = thermal::network_to_json(net);
   for (int i = 0; i < net.param_count(); ++i) j["parameters"][net.params[static_cast<std::size_t>(i)].name] = p[i];
   if (edit) edit(j["parameters"]);
+  // The channel map `fit` writes from module recordings (probe 5 on the shaft end): reduce takes
+  // it; without one the preset's T4 (the shaft, as in the reference data) left the module with no
+  // ambient channel, a model reduce now refuses.
+  j["channel_map"] = nlohmann::json::array();
+  const char* nodes[5] = {"rear_bearing", "housing", "front_bearing", "ambient", "shaft"};
+  for (int ch = 1; ch <= 5; ++ch)
+    j["channel_map"].push_back({{"channel", ch}, {"column", "T" + std::to_string(ch)}, {"module_role", nodes[ch - 1]},
+                                {"node", nodes[ch - 1]}});
   return j.dump(2);
 }
 

@@ -257,7 +257,10 @@ TEST(LooseInputs, FourthProbeRunsEndAndChannelMapsAreWhole) {
                       {"reduce model.json --speeds 4000,6000 --force --abs-limit -300 --out r.json", "--abs-limit"},
                       {"reduce model.json --speeds 4000,6000 --force --drift 1e9 --out r.json", "--drift"},
                       {"reduce model.json --speeds 4000,6000 --force --low-drift -0.1 --out r.json", "--low-drift"},
-                      {"reduce model.json --speeds 4000,6000 --max-rise -1 --out r.json", "--max-rise"}});
+                      {"reduce model.json --speeds 4000,6000 --max-rise -1 --out r.json", "--max-rise"},
+                      // probe 5 (P1): a model without an ambient channel predicted nothing on the module
+                      {"reduce model.json --speeds 4000,6000 --channels rear_bearing,housing,front_bearing,none,shaft --out r.json",
+                       "no channel is the ambient (--channels"}});
   EXPECT_FALSE(file_exists(d.file("r.json")));
 }
 

@@ -157,6 +157,35 @@ TEST(LinkCli, KeysAndFlashModel) {
   EXPECT_FALSE(nlohmann::json::parse(run(home, "keys list --json").out)[0]["usable"].get<bool>());
 }
 
+// A role change that leaves the active model behind was acknowledged without a word, and the
+// module then showed NORMAL without predicting (probe 5): set-config says it as `info` does.
+// Disabling the last channel in use silenced the module (monitor blamed the link): refused.
+TEST(LinkCli, SetConfigWarnsWhenARoleChangeVoidsTheActiveModel) {
+  test::TempDir home;
+  ModuleOnPty m;
+  const auto blob = test::make_test_blob(1);  // ambient on ch4, ch5 not modelled
+  std::ofstream(home.path + "/model.bin", std::ios::binary)
+      .write(reinterpret_cast<const char*>(blob.data()), static_cast<std::streamsize>(blob.size()));
+  std::string dev;
+  for (int i = 0; i < 32; ++i) dev += fmt::format("{:02x}", i);
+  ASSERT_EQ(run(home, "keys import 0000de70 " + dev).code, 0);
+  Result r = run(home, "flash-model --port " + m.pty.path + " " + home.path + "/model.bin");
+  ASSERT_EQ(r.code, 0) << r.err;
+  r = run(home, "set-config channel_role_5 shaft --port " + m.pty.path);  // a channel the model leaves alone
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(r.err.find("WARNING"), std::string::npos) << r.err;
+  r = run(home, "set-config channel_role_4 disabled --port " + m.pty.path);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.err.find("WARNING: the active model no longer fits the roles: the model takes its ambient from ch4"),
+            std::string::npos)
+      << r.err;
+  for (const char* ch : {"1", "2", "3"}) ASSERT_EQ(run(home, std::string("set-config channel_role_") + ch + " disabled --port " + m.pty.path).code, 0);
+  r = run(home, "set-config channel_role_5 disabled --port " + m.pty.path);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("would disable the last channel in use"), std::string::npos) << r.err;
+  EXPECT_EQ(run(home, "get-config channel_role_5 --port " + m.pty.path).out, "channel_role_5         shaft\n");
+}
+
 std::string dev_key_hex() {
   std::string dev;
   for (int i = 0; i < 32; ++i) dev += fmt::format("{:02x}", i);

@@ -228,3 +228,19 @@ TEST(FlashModel, VersionOneBlobIsRefusedNamingItsVersion) {
   EXPECT_EQ(rig.module.commit_payloads().size(), 0u);
   EXPECT_TRUE(rig.module.active_model().empty());
 }
+
+// A model without an ambient channel predicts nothing: the module showed NORMAL on every sample
+// and a 30 W bearing fault never ALARMed (probe 5). flash-model refuses it (a conflict) and `info`
+// names it; a model with its ambient passes.
+TEST(FlashModel, AModelWithoutAnAmbientChannelIsAConflict) {
+  const auto role = [](wire::ChannelRole r) { return static_cast<uint8_t>(r); };
+  const uint8_t module[5] = {role(wire::ChannelRole::RearBearing), role(wire::ChannelRole::Housing),
+                             role(wire::ChannelRole::FrontBearing), role(wire::ChannelRole::Ambient),
+                             role(wire::ChannelRole::Shaft)};
+  const uint8_t no_ambient[5] = {module[0], module[1], module[2], kModelRoleNotModelled, module[4]};
+  const ChannelMapCheck bad = check_channel_map(no_ambient, module);
+  ASSERT_EQ(bad.conflicts.size(), 1u);
+  EXPECT_NE(bad.conflicts[0].find("the model has no ambient channel"), std::string::npos) << bad.conflicts[0];
+  const uint8_t with_ambient[5] = {module[0], module[1], module[2], kModelRoleAmbient, module[4]};
+  EXPECT_TRUE(check_channel_map(with_ambient, module).ok());
+}
