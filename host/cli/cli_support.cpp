@@ -111,4 +111,10 @@ std::vector<double> number_list(const std::string& text, const std::string& opti
   return v;
 }
 
+std::string given_columns(const std::vector<std::string>& columns) {
+  std::string s;
+  for (const auto& c : columns) s += " " + c + " (--column)";
+  return s;
+}
+
 }  // namespace btsm::cli

@@ -37,6 +37,10 @@ struct LinkOptions {
 };
 void add_link_options(CLI::App& cmd, LinkOptions& opts);
 
+// " shaft=T5 (--column) ..." for the NODE=COLUMN pairs given with --column, appended to the roles
+// line fit and residual print (it named only what the roles decided, so T5 seemed unused).
+std::string given_columns(const std::vector<std::string>& columns);
+
 // Adds to every floating-point option of `app` and its subcommands (registered so far) a check
 // that refuses nan and inf (and numbers beyond double range): CLI11 converts "nan" to a double
 // and its Range and PositiveNumber checks let it through, since every comparison with NaN is false.

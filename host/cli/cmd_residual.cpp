@@ -94,7 +94,7 @@ void run_residual(ResidualArgs& a) {
       std::cerr << "residual: the model's own column mapping:" << said << "\n";
     } else {
       const std::string said = th::map_measurements(model.network, all, a.columns);
-      if (!said.empty()) std::cerr << "residual: from the recordings' channel roles:" << said << "\n";
+      if (!said.empty()) std::cerr << "residual: from the recordings' channel roles:" << said << given_columns(a.columns) << "\n";
     }
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());

@@ -88,8 +88,9 @@ void run_sim(const SimArgs& a) {
   try {
     io::refuse_output_over_input(a.truth_out, "--truth-out", {a.profile_file, a.eeprom, a.elf, a.pty});
     io::refuse_output_over_input(a.eeprom, "--eeprom", {a.profile_file, a.elf, a.pty});
-    if (!a.truth_out.empty() && !a.eeprom.empty() && std::filesystem::path(a.truth_out).lexically_normal() ==
-                                                          std::filesystem::path(a.eeprom).lexically_normal())
+    // saved at the end: a missing directory was found only after the whole run (probe 5)
+    if (!a.eeprom.empty()) io::refuse_output_file_that_cannot_be_made(a.eeprom, "--eeprom");
+    if (io::same_output_file(a.truth_out, a.eeprom))
       throw io::InputError("--truth-out and --eeprom name the same file " + a.eeprom + ": each needs its own");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
@@ -147,6 +148,13 @@ void run_sim(const SimArgs& a) {
   m->wait();
   std::signal(SIGINT, old);
   std::signal(SIGTERM, old_term);
+  // The module's EEPROM (models flashed, configuration set) is the run's result: a failed save
+  // was logged and the run ended 0 (probe 5).
+  try {
+    m->save_eeprom_now();
+  } catch (const std::exception& e) {
+    throw CommandError(kExitFailure, std::string("the run ended but its EEPROM was not saved: ") + e.what());
+  }
   const auto s = m->stats();
   const std::string err = m->error();
   if (a.json) {

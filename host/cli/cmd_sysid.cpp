@@ -22,6 +22,7 @@
 #include <fstream>
 #include <iostream>
 #include <memory>
+#include <set>
 #include <sstream>
 
 namespace btsm::cli {
@@ -73,7 +74,7 @@ void run_fit(const FitArgs& a) {
   try {
     refuse_repeated_recordings(recs);
     const std::string said = map_measurements(net, recs, a.columns);
-    if (!said.empty()) std::cerr << "fit: from the recordings' channel roles:" << said << "\n";
+    if (!said.empty()) std::cerr << "fit: from the recordings' channel roles:" << said << given_columns(a.columns) << "\n";
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
@@ -129,10 +130,16 @@ struct ValidateArgs {
   std::size_t initial_rows = 120;
 };
 
-void plot_validation(const Network& net, const Recording& rec, const RecordingValidation& v, const std::string& dir) {
+// `used` holds the stems written so far: two recordings of one name in different folders
+// (A/check.csv, B/check.csv) wrote one plot over the other (probe 5); the second gets "_2".
+void plot_validation(const Network& net, const Recording& rec, const RecordingValidation& v, const std::string& dir,
+                     std::set<std::string>& used) {
   namespace rp = btsm::report;
   std::filesystem::create_directories(dir);
-  const std::string stem = (std::filesystem::path(dir) / ("validate_" + std::filesystem::path(rec.source).stem().string())).string();
+  const std::string base = (std::filesystem::path(dir) / ("validate_" + std::filesystem::path(rec.source).stem().string())).string();
+  std::string stem = base;
+  for (int n = 2; used.count(stem) > 0; ++n) stem = base + "_" + std::to_string(n);
+  used.insert(stem);
   rp::save_figure(rp::validation_figure(net, rec, v, std::filesystem::path(rec.source).filename().string()), stem,
                   rp::network_figure_options(net));
   std::cerr << "validate: wrote " << stem << ".png/.svg\n";
@@ -178,6 +185,7 @@ void run_validate(const ValidateArgs& a) {
                                "rows it was fitted to\n",
                                rec.source, a.initial_rows, rec.rows());
   if (!a.json_out) std::cout << kNmseConvention << "\n";
+  std::set<std::string> plot_stems;
   for (const auto& rec : recs) {
     RecordingValidation v;
     try {
@@ -229,7 +237,7 @@ void run_validate(const ValidateArgs& a) {
         std::cout << "  steady state: -- (no run at one speed that ends in a stop)\n";
     }
     out["recordings"].push_back(rj);
-    if (!a.plots.empty()) plot_validation(net, rec, v, a.plots);
+    if (!a.plots.empty()) plot_validation(net, rec, v, a.plots, plot_stems);
   }
   out["nmse"] = nmse;
   out["rmse_K"] = rmse;
@@ -357,12 +365,13 @@ std::vector<std::string> channel_map(const Network& net, const json& model_json,
 
 void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_detector) {
   {
+    // "./out/../out/r.json" as --blob wrote the blob over the reduced JSON (probe 5)
+    if (io::same_output_file(a.blob, a.out)) throw CommandError(kExitUsage, "--blob and --out name the same file " + a.out);
     std::vector<std::string> inputs = a.calibrate;
     inputs.push_back(a.model);
     io::refuse_output_over_input(a.out, "--out", inputs);
     inputs.push_back(a.out);
     io::refuse_output_over_input(a.blob, "--blob", inputs);
-    if (!a.blob.empty() && a.blob == a.out) throw CommandError(kExitUsage, "--blob and --out name the same file " + a.out);
   }
   FittedModel model;
   try {

@@ -9,6 +9,7 @@
 #include <unistd.h>
 
 #include <cerrno>
+#include <filesystem>
 #include <cstdlib>
 #include <cstring>
 #include <stdexcept>
@@ -95,6 +96,16 @@ void refuse_output_over_input(const std::string& output, const std::string& opti
     if (::stat(in.c_str(), &st) == 0 && st.st_dev == out.st_dev && st.st_ino == out.st_ino)
       throw InputError(option + " " + output + " is the input " + in + ": refusing to overwrite it (choose another output)");
   }
+}
+
+bool same_output_file(const std::string& a, const std::string& b) {
+  if (a.empty() || b.empty()) return false;
+  const auto resolved = [](const std::string& p) {
+    std::error_code ec;
+    std::filesystem::path r = std::filesystem::weakly_canonical(std::filesystem::absolute(p, ec), ec);
+    return ec ? std::filesystem::absolute(p).lexically_normal() : r;
+  };
+  return resolved(a) == resolved(b);
 }
 
 void refuse_output_dir_that_is_no_directory(const std::string& dir, const std::string& option) {

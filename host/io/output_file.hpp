@@ -21,6 +21,10 @@ void write_output_file(const std::string& path, std::string_view content, const 
 // exist yet cannot be an input.
 void refuse_output_over_input(const std::string& output, const std::string& option, const std::vector<std::string>& inputs);
 
+// True when two output paths name one file, whether or not it exists yet: compared after
+// resolving ".", "..", symlinks and the current directory ("./out/../out/a.json" = "out/a.json").
+bool same_output_file(const std::string& a, const std::string& b);
+
 // Throws InputError when `dir` (an output directory given with `option`, "--report") exists and
 // is not a directory: checked before the work, which would otherwise run to the end and fail there.
 void refuse_output_dir_that_is_no_directory(const std::string& dir, const std::string& option);

@@ -13,6 +13,8 @@
 #include <cerrno>
 
 #include <algorithm>
+#include <chrono>
+#include <thread>
 
 namespace btsm::link {
 namespace {
@@ -74,6 +76,23 @@ std::string serial_port_for(const LinkSpec& spec) {
   return only_adapter_tty(spec.sysfs_root);
 }
 
+namespace {
+// Returns when `path` exists, its directory does not, or `wait_s` has passed (a README block
+// pasted whole ran `set-config` before the `sim-module &` of the line before had made its link).
+void wait_for_port_to_appear(const std::string& path, double wait_s) {
+  struct stat st {};
+  if (path.empty() || ::stat(path.c_str(), &st) == 0 || errno != ENOENT) return;
+  const auto slash = path.find_last_of('/');
+  const std::string dir = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
+  if (::stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return;
+  const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
+  while (std::chrono::steady_clock::now() < deadline) {
+    std::this_thread::sleep_for(std::chrono::milliseconds(50));
+    if (::stat(path.c_str(), &st) == 0) return;
+  }
+}
+}  // namespace
+
 TransportPtr open_link(const LinkSpec& spec) {
   const auto timeout = Millis(static_cast<long>(spec.timeout_s * 1000));
   if (!spec.ble.empty()) {
@@ -86,6 +105,7 @@ TransportPtr open_link(const LinkSpec& spec) {
     o.channel = spec.rfcomm_channel;
     return std::make_unique<RfcommTransport>(spec.rfcomm, o);
   }
+  if (!spec.port.empty()) wait_for_port_to_appear(spec.port, spec.appear_wait_s);
   return std::make_unique<SerialTransport>(serial_port_for(spec));
 }
 

@@ -12,6 +12,10 @@ struct LinkSpec {
   int rfcomm_channel = 1;
   double timeout_s = 2.0;  // connect / reply timeout, s
   std::string sysfs_root = "/sys";
+  // A --port that does not exist yet is waited for this long (s) when its directory exists: a
+  // simulated module started with `&` on the line before makes its pty link a moment later, a
+  // board re-enumerates after a reset.
+  double appear_wait_s = 5.0;
 };
 
 // Throws LinkError (kNoDevice with what to do when nothing is selected or found).

@@ -16,6 +16,12 @@ PtyBridge::PtyBridge(const std::string& link_path) : link_path_(link_path) {
   struct stat st {};
   if (lstat(link_path.c_str(), &st) == 0 && !S_ISLNK(st.st_mode))
     throw std::runtime_error("pty: " + link_path + " exists and is not a symlink; not replacing it");
+  if (lstat(link_path.c_str(), &st) == 0) {
+    char target[256] = {};
+    struct stat live {};
+    const ssize_t n = readlink(link_path.c_str(), target, sizeof target - 1);
+    if (n > 0 && stat(link_path.c_str(), &live) == 0 && S_ISCHR(live.st_mode)) replaced_live_target_.assign(target, size_t(n));
+  }
   int slave = -1;
   char name[256] = {};
   if (openpty(&master_, &slave, name, nullptr, nullptr) != 0)

@@ -24,6 +24,9 @@ class PtyBridge {
 
   const std::string& slave_name() const { return slave_name_; }
   const std::string& link_path() const { return link_path_; }
+  // The pty the replaced symlink led to when that pty was still there (another simulated module,
+  // most likely still running: hosts that had it open keep talking to it), else "".
+  const std::string& replaced_live_target() const { return replaced_live_target_; }
 
   bool host_connected() const;
   // Non-blocking; returns bytes read (0 = nothing now).
@@ -37,6 +40,7 @@ class PtyBridge {
   int master_ = -1;
   std::string slave_name_;
   std::string link_path_;
+  std::string replaced_live_target_;
 };
 
 }  // namespace btsm::sim

@@ -61,6 +61,12 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
   board_ = opts_.board == BoardKind::Avr ? make_avr_board(b) : make_native_board(b);
   // The pty first: a start that fails there must not have truncated an existing --truth-out file.
   if (!opts_.pty_path.empty()) pty_ = std::make_unique<Pty>(opts_.pty_path);
+  // Two modules on one link path: a command typed while the new one started reached the old one
+  // (a README walk: set-config acknowledged by the previous module, the recording without the role).
+  if (pty_ && !pty_->bridge.replaced_live_target().empty())
+    log("sim-module: WARNING: " + opts_.pty_path + " led to " + pty_->bridge.replaced_live_target() +
+        ", a pty still open (another sim-module still running?); it now leads to this module, but a host that "
+        "opened the old one keeps talking to that one (end it first, or give each module its own --pty)");
   if (!opts_.truth_csv.empty()) {
     truth_ = std::make_unique<Truth>();
     std::vector<std::string> cols;
@@ -78,6 +84,12 @@ SimModule::SimModule(SimModuleOptions opts) : opts_(std::move(opts)) {
     w.write_meta("speed_profile", opts_.plant.speed.to_string());
     w.write_meta("channels", std::string("T1 rear bearing, T2 housing, T3 front bearing, T4 ambient, T5 ") +
                                  ch5_description(opts_.plant.ch5));
+    // Where each probe sits, in the recording's own words: without it `fit --preset spindle4` took
+    // T4 (the ambient probe) for the shaft (probe 5). The spare surface probe is no node.
+    w.write_meta("channel_roles", std::string("T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=") +
+                                      (opts_.plant.ch5 == Ch5Mode::ShaftEnd ? "shaft"
+                                       : opts_.plant.ch5 == Ch5Mode::Disabled ? "disabled"
+                                                                               : "spare"));
     for (const auto& f : opts_.plant.faults) w.write_meta("fault", to_string(f));
     for (const auto& e : opts_.plant.effects.specs) w.write_meta("effect", e);
     const auto join = [](const std::vector<std::string>& v) {
@@ -101,6 +113,11 @@ SimModule::~SimModule() {
   } catch (const std::exception& e) {
     log(std::string("sim-module: ") + e.what());
   }
+}
+
+void SimModule::save_eeprom_now() {
+  std::lock_guard<std::mutex> lk(mu_);
+  board_->save_eeprom();
 }
 
 const char* SimModule::board_kind() const { return board_->kind(); }

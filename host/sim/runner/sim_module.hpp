@@ -105,6 +105,9 @@ class SimModule {
   void run_for(double sim_s);
   // Error that ended the background run ("" if none).
   std::string error() const;
+  // Saves the EEPROM image (--eeprom) now; throws std::runtime_error naming the file when it cannot
+  // be written (the destructor saves again and can only log).
+  void save_eeprom_now();
 
   double sim_time_s() const;
   TruthRow truth() const;

@@ -2,6 +2,7 @@
 
 #include "host/io/input_error.hpp"
 #include "host/io/json_input.hpp"
+#include "host/io/output_file.hpp"
 #include "host/sim/suite/generate.hpp"
 
 #include <fmt/core.h>
@@ -130,6 +131,9 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     // the case's folder (residual_command, which a run already went through before it was started),
     // and a kind the scoring knows ("bogus" counted as quiet).
     if (ch.pid < 0) (void)residual_command(opts.btsm_path.empty() ? std::string("btsm") : opts.btsm_path, dir.string(), {});
+    // the row is named by the truth's id: one that is not the case's folder scored another case's row (probe 5)
+    if (const std::string id = truth.at("id").get<std::string>(); id != c.id)
+      throw io::InputError((dir / "truth.json").string() + ": id '" + id + "' is not the case's folder '" + c.id + "'");
     if (const std::string kind = truth.at("kind").get<std::string>(); kind != "effect" && kind != "clean" && kind != "distractor")
       throw io::InputError((dir / "truth.json").string() + ": kind '" + kind + "' is not effect, clean or distractor");
     CaseResult r;
@@ -226,7 +230,9 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
   rep.rows = summarize(results);
   rep.table_md = markdown_table(rep.rows);
   rep.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
-  std::ofstream(out / "results.csv") << results_csv(results);
+  // Beside-and-rename with every write checked (probe 5: /dev/full and a directory in the way
+  // were "written", a symlinked results.json was written through to its target).
+  io::write_output_file((out / "results.csv").string(), results_csv(results), "suite results");
   nlohmann::json j;
   j["cases"] = nlohmann::json::array();
   for (const auto& r : results) j["cases"].push_back(to_json(r));
@@ -242,8 +248,8 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
                           {"goal", row.goal},
                           {"errors", row.errors}});
   j["wall_s"] = rep.wall_s;
-  std::ofstream(out / "results.json") << j.dump(1) << "\n";
-  std::ofstream(out / "table.md") << rep.table_md;
+  io::write_output_file((out / "results.json").string(), j.dump(1) + "\n", "suite results");
+  io::write_output_file((out / "table.md").string(), rep.table_md, "suite table");
   return rep;
 }
 

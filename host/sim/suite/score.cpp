@@ -56,6 +56,19 @@ std::string answer_shape_problem(const nlohmann::json& answer) {
   if (std::find(std::begin(kVerdicts), std::end(kVerdicts), v.get<std::string>()) == std::end(kVerdicts))
     return "'verdict' is '" + v.get<std::string>() + "', not effect, partial, none or unexplained";
   if (answer.contains("effect") && !answer["effect"].is_string()) return "'effect' is not text";
+  // A name no residual run gives (a hand-edited answer, "latent_mass\n| fake | row |") was scored
+  // as a claim of some family (probe 5): the ten families, their aliases, none and unexplained.
+  if (answer.contains("effect")) {
+    static const char* const kFamilies[] = {"heat_source_transient", "temperature_dependent_heat", "coupled_heat",
+                                            "extra_heat_input",      "sensor_lag",                 "sensor_drift",
+                                            "ambient_dynamics",      "second_boundary",            "event_conductance",
+                                            "latent_mass"};
+    const std::string e = answer["effect"].get<std::string>();
+    bool known = e.empty() || e == "none" || e == "unexplained";
+    for (const char* f : kFamilies)
+      for (const auto& name : accepted_names(f)) known = known || e == name;
+    if (!known) return "'effect' is '" + e + "', not a family the residual loop names";
+  }
   if (answer.contains("nodes")) {
     if (!answer["nodes"].is_array()) return "'nodes' is not a list";
     for (const auto& n : answer["nodes"])
@@ -191,6 +204,17 @@ std::string markdown_table(const std::vector<TableRow>& rows) {
   return s;
 }
 
+namespace {
+// RFC 4180: a field holding a comma, a quote or a line break is quoted, its quotes doubled (an id
+// or an error text with a comma shifted every later column; one with a newline split the row).
+std::string csv_field(const std::string& v) {
+  if (v.find_first_of(",\"\r\n") == std::string::npos) return v;
+  std::string q = "\"";
+  for (char c : v) q += c == '"' ? std::string("\"\"") : std::string(1, c);
+  return q + "\"";
+}
+}  // namespace
+
 std::string results_csv(const std::vector<CaseResult>& results) {
   std::string s =
       "id,kind,family,variant,truth_nodes,verdict,effect,nodes,rmse_before_K,rmse_after_K,noise_floor_K,cut,"
@@ -202,13 +226,11 @@ std::string results_csv(const std::vector<CaseResult>& results) {
   };
   const auto f = [](double v) { return std::isfinite(v) ? fmt::format("{:.6g}", v) : std::string(); };
   for (const auto& r : results) {
-    std::string err = r.error;
-    std::replace(err.begin(), err.end(), ',', ';');
-    std::replace(err.begin(), err.end(), '\n', ' ');
-    s += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", r.id, r.kind, r.family, r.variant,
-                     list(r.truth_nodes), r.verdict, r.effect, list(r.nodes), f(r.rmse_before_k), f(r.rmse_after_k),
+    const auto q = csv_field;
+    s += fmt::format("{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}\n", q(r.id), q(r.kind), q(r.family), q(r.variant),
+                     q(list(r.truth_nodes)), q(r.verdict), q(r.effect), q(list(r.nodes)), f(r.rmse_before_k), f(r.rmse_after_k),
                      f(r.noise_floor_k), f(r.cut()), int(r.family_named), int(r.named), int(r.claimed), int(r.goal),
-                     f(r.residual_s), err);
+                     f(r.residual_s), q(r.error));
   }
   return s;
 }

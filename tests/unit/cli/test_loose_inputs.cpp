@@ -238,6 +238,68 @@ TEST(LooseInputs, AReusedAnswerIsHeldToTheTruthChecksOfARun) {
   }
 }
 
+// The fifth probe (27 Nov): a hand-edited answer with an effect no residual run gives was scored,
+// a truth id other than its folder named the row, a comma in a field shifted results.csv's columns,
+// and a symlinked results.json was written through to its target.
+TEST(LooseInputs, FifthProbeSuiteAnswersAndOutputs) {
+  ScratchDir d;
+  const CliResult gen = run_btsm(d, "effect-suite --set reduced --only clean_r --generate-only --out s", 120);
+  ASSERT_EQ(gen.code, 0) << gen.err;
+  const std::string truth_path = d.file("s/cases/clean_r/truth.json"), answer_path = d.file("s/cases/clean_r/residual.json");
+  const std::string truth = read_text(truth_path);
+  const std::string cmd = "effect-suite --set reduced --only clean_r --score-only --reuse --out s --btsm /bin/false";
+  write_text(answer_path, R"({"verdict":"effect","effect":"latent_mass\n| fake | row |","nodes":[]})");
+  CliResult r = run_btsm(d, cmd);
+  EXPECT_NE(r.err.find("not a family the residual loop names"), std::string::npos) << r.err;
+  nlohmann::json t = nlohmann::json::parse(truth);
+  t["id"] = "clean_r,\"x\"";
+  write_text(truth_path, t.dump(1));
+  write_text(answer_path, R"({"verdict":"none","effect":"none","nodes":[],"rmse_before_K":0.003,"rmse_after_K":0.003})");
+  r = run_btsm(d, cmd);
+  EXPECT_EQ(r.code, 2) << r.err;
+  EXPECT_NE(r.err.find("is not the case's folder 'clean_r'"), std::string::npos) << r.err;
+  write_text(truth_path, truth);
+  write_text(answer_path, R"({"verdict":"none","effect":"none","nodes":[],"rmse_before_K":0.003,"rmse_after_K":0.003})");
+  write_text(d.file("precious.txt"), "keep me");
+  std::filesystem::remove(d.file("s/results.json"));
+  std::filesystem::create_symlink(d.file("precious.txt"), d.file("s/results.json"));
+  r = run_btsm(d, cmd);
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_EQ(read_text(d.file("precious.txt")), "keep me");  // the link is replaced, not written through
+  EXPECT_FALSE(std::filesystem::is_symlink(d.file("s/results.json")));
+  std::filesystem::remove(d.file("s/results.csv"));
+  std::filesystem::create_directory(d.file("s/results.csv"));
+  r = run_btsm(d, cmd);
+  EXPECT_EQ(r.code, 1) << r.err;  // was "written", exit 0
+  EXPECT_NE(r.err.find("results.csv"), std::string::npos) << r.err;
+}
+
+// The fifth probe: outputs named twice or unwritable only at the end, and plots written over each other.
+TEST(LooseInputs, FifthProbeOutputsAreDistinctAndCheckedFirst) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(200));
+  std::filesystem::create_directories(d.file("out"));
+  expect_refusals(d, {{"reduce model.json --speeds 4000,6000 --force --out out/r.json --blob ./out/../out/r.json",
+                       "--blob and --out name the same file"},
+                      {"sim-module --pty p --no-wait --profile 1m@0 --eeprom nodir/e.bin", "--eeprom nodir/e.bin: its directory nodir does not exist"}});
+  EXPECT_FALSE(file_exists(d.file("out/r.json")));
+  std::filesystem::create_directories(d.file("A"));
+  std::filesystem::create_directories(d.file("B"));
+  write_text(d.file("A/check.csv"), recording_csv(200));
+  write_text(d.file("B/check.csv"), recording_csv(180));
+  const CliResult v = run_btsm(d, "validate model.json A/check.csv B/check.csv --plots plots", 120);
+  ASSERT_EQ(v.code, 0) << v.err;
+  EXPECT_TRUE(file_exists(d.file("plots/validate_check.png")));
+  EXPECT_TRUE(file_exists(d.file("plots/validate_check_2.png")));  // B's plot was written over A's
+  // A 200 kB metadata line drawn as a panel label: the label was cut one character at a time,
+  // measuring the rest each time (minutes; killed at 60 s here). Now cut before it is measured.
+  write_text(d.file("long.csv"), "# speed_rpm_quantity: " + std::string(200000, 'x') + "\n" + recording_csv(200));
+  const CliResult l = run_btsm(d, "validate model.json long.csv --plots plots", 60);
+  EXPECT_EQ(l.code, 0) << l.err;
+  EXPECT_TRUE(file_exists(d.file("plots/validate_long.png")));
+}
+
 // The fourth probe (27 Nov): a run a hair above a whole board step spun for ever; --channels with
 // two entries left three channels unmodelled; a negative --initial-rows wrapped to 2^64 - 1.
 TEST(LooseInputs, FourthProbeRunsEndAndChannelMapsAreWhole) {

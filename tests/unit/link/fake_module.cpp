@@ -123,7 +123,8 @@ void FakeModule::send(MsgType type, uint8_t seq, const uint8_t* payload, uint8_t
   const size_t n = encode_frame(type_code(type), seq, payload, len, out, sizeof out);
   if (n == 0) throw std::logic_error("fake module: frame does not encode");
   size_t done = 0;
-  while (done < n) {
+  // Stops with the module: with no host reading, a full pty made the destructor wait for ever.
+  while (done < n && running_) {
     const ssize_t w = ::write(fd_, out + done, n - done);
     if (w > 0) {
       done += static_cast<size_t>(w);

@@ -186,6 +186,23 @@ TEST(LinkCli, SetConfigWarnsWhenARoleChangeVoidsTheActiveModel) {
   EXPECT_EQ(run(home, "get-config channel_role_5 --port " + m.pty.path).out, "channel_role_5         shaft\n");
 }
 
+// A README block pasted whole ran `set-config --port /tmp/btsm-sim` before the `sim-module &` of
+// the line before had made its link: exit 3, and the block went on with the wrong recordings.
+// A port that appears a moment later is waited for.
+TEST(LinkCli, APortThatAppearsAMomentLaterIsWaitedFor) {
+  test::TempDir home;
+  ModuleOnPty m;
+  const std::string late = home.path + "/late-link";
+  std::thread maker([&] {
+    std::this_thread::sleep_for(std::chrono::milliseconds(800));
+    ASSERT_EQ(::symlink(m.pty.path.c_str(), late.c_str()), 0);
+  });
+  const Result r = run(home, "info --port " + late);
+  maker.join();
+  EXPECT_EQ(r.code, 0) << r.err;
+  EXPECT_NE(r.out.find("0000de70"), std::string::npos) << r.out;
+}
+
 std::string dev_key_hex() {
   std::string dev;
   for (int i = 0; i < 32; ++i) dev += fmt::format("{:02x}", i);

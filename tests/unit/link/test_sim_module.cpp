@@ -143,7 +143,27 @@ TEST(SimModuleLink, TruthFileNamesWhereTheFifthProbeIs) {
     if (mode == sim::Ch5Mode::ShaftEnd) {
       EXPECT_EQ(channels.find("housing surface"), std::string::npos) << channels;
     }
+    // The roles line a recording carries: `fit --preset spindle4` on a truth file took T4 (the
+    // ambient probe) for the shaft without it (probe 5).
+    EXPECT_EQ(truth.meta_value("channel_roles"), std::string("T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=") +
+                                                     (mode == sim::Ch5Mode::ShaftEnd ? "shaft" : "spare"));
   }
+}
+
+// A second module on the link path of a running one takes the link, and says that hosts which
+// opened the old one still talk to it (a pasted README block's set-config reached the old module).
+TEST(SimModuleLink, ASecondModuleOnALiveLinkSaysSo) {
+  test::TempDir dir;
+  auto first = start_sim(dir.path + "/btsm-sim");
+  std::vector<std::string> said;
+  sim::SimModuleOptions o;
+  o.pty_path = dir.path + "/btsm-sim";
+  o.plant.speed = sim::SpeedProfile::parse("1h@0");
+  o.log = [&](const std::string& s) { said.push_back(s); };
+  sim::SimModule second(o);
+  ASSERT_FALSE(said.empty());
+  EXPECT_NE(said[0].find("WARNING: " + o.pty_path + " led to /dev/pts/"), std::string::npos) << said[0];
+  EXPECT_NE(said[0].find("another sim-module still running?"), std::string::npos) << said[0];
 }
 
 TEST(SimModuleLink, RecordingSaysWhichFaultEmptiedACell) {
