@@ -66,13 +66,19 @@ class ModelStore {
     uint8_t order[2] = {0, 1};
     uint32_t seq[2] = {0, 0};
     bool ok[2] = {slot_intact(0, seq[0]), slot_intact(1, seq[1])};
-    if (ok[0] && ok[1] && seq[1] > seq[0]) {
+    // Serial-number order (RFC 1982): the sequence wraps from 0xFFFFFFFF to 0 and the wrapped slot
+    // is still the newer one. Compared as plain numbers, a model flashed over seq 0xFFFFFFFF got
+    // seq 0 and the old one came back at the next reset (probe 5).
+    if (ok[0] && ok[1] && static_cast<int32_t>(seq[1] - seq[0]) > 0) {
       order[0] = 1;
       order[1] = 0;
     }
     next_seq_ = 1;
-    for (uint8_t i = 0; i < 2; ++i) {
-      if (ok[i] && seq[i] >= next_seq_) next_seq_ = seq[i] + 1;
+    for (uint8_t k = 0; k < 2; ++k) {
+      if (ok[order[k]]) {
+        next_seq_ = seq[order[k]] + 1;  // after the newest intact slot
+        break;
+      }
     }
     for (uint8_t k = 0; k < 2; ++k) {
       const uint8_t s = order[k];

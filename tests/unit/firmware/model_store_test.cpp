@@ -157,6 +157,39 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
   EXPECT_EQ(active_blob(third), blob2);
 }
 
+// A slot with sequence 0xFFFFFFFF (a corrupted or hostile image): the next model gets sequence 0,
+// and at the next boot that one is the newer (serial-number order), not the old one (probe 5).
+TEST(ModelStore, TheSequenceWrapsAndTheNewestModelStaysActive) {
+  sim::NativeBoard board(fast_eeprom());
+  const auto key = test::dev_key();
+  ModelRuntime m;
+  {
+    ModelStore<Storage> store(board.storage);
+    store.boot(m);
+    ASSERT_EQ(upload(board, store, m, test::model_blob(), key, key).commit, Nack::Ok);
+  }
+  // Renumber slot 0's model to 0xFFFFFFFF, its CRC with it.
+  std::vector<uint8_t>& ee = board.eeprom();
+  const uint16_t base = eeprom_layout::slot_addr(0);
+  uint8_t seq[4];
+  put_le32(seq, 0xFFFFFFFFu);
+  std::memcpy(&ee[base + eeprom_layout::kHdrSeq], seq, 4);
+  put_le32(&ee[base + eeprom_layout::kHdrCrc],
+           crc32(&ee[eeprom_layout::blob_addr(0)], eeprom_layout::kBlobSize, crc32(seq, 4)));
+  ModelStore<Storage> store(board.storage);
+  store.boot(m);
+  ASSERT_EQ(store.active_seq(), 0xFFFFFFFFu);
+  const auto blob2 = test::model_blob(1.0);
+  ASSERT_EQ(upload(board, store, m, blob2, key, key).commit, Nack::Ok);
+  EXPECT_EQ(store.active_seq(), 0u);
+  ModelStore<Storage> rebooted(board.storage);
+  rebooted.boot(m);
+  EXPECT_EQ(rebooted.active_seq(), 0u);
+  EXPECT_EQ(active_blob(rebooted), blob2) << "the old model came back at the reset";
+  ASSERT_EQ(upload(board, rebooted, m, test::model_blob(), key, key).commit, Nack::Ok);
+  EXPECT_EQ(rebooted.active_seq(), 1u);
+}
+
 // The firmware steps the model with coefficients read from EEPROM and interpolated member by
 // member (only those of modelled channels), or the stop phase's poles; the common step()
 // interpolates a whole decoded model. Same predictions and states, bit for bit, at breakpoints,
