@@ -141,7 +141,19 @@ RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd
   const auto rows = static_cast<Eigen::Index>(rec.rows());
   for (std::size_t m = 0; m < cols.size(); ++m) {
     const Eigen::VectorXd meas = rec.temp_c.col(cols[m]);
-    const Eigen::VectorXd pred = v.predicted_c.col(net.measurements[m].node);
+    Eigen::VectorXd pred = v.predicted_c.col(net.measurements[m].node);
+    if (const int d = net.measurements[m].drift_param; d >= 0) {
+      // A drifting probe reads its node + drift x hours + its own offset in this recording (the
+      // least-squares constant, as fit and residual take it): scored without it, a 1e10 K/h drift
+      // scored like none while heat and residual applied it (probe 5).
+      double sum = 0;
+      Eigen::Index n = 0;
+      for (Eigen::Index k = 0; k < rows; ++k) {
+        pred[k] += params[d] * (rec.time_s[static_cast<std::size_t>(k)] - rec.time_s.front()) / 3600.0;
+        if (std::isfinite(meas[k]) && std::isfinite(pred[k])) sum += meas[k] - pred[k], ++n;
+      }
+      if (n > 0) pred.array() += sum / static_cast<double>(n);
+    }
     v.all.push_back(error_metrics(meas, pred));
     Eigen::VectorXd mo = meas, mc = meas;
     for (Eigen::Index k = 0; k < rows; ++k) {

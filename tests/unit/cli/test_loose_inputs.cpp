@@ -300,6 +300,38 @@ TEST(LooseInputs, FifthProbeOutputsAreDistinctAndCheckedFirst) {
   EXPECT_TRUE(file_exists(d.file("plots/validate_long.png")));
 }
 
+// A probe drift in a model (README: "a measurement ... drift ... d_T1 K/h") was left out of
+// validate's scores while heat and residual applied it (probe 5): a 5 K/h drift on a recording
+// without one scored like none. Now the same model scores the same way everywhere.
+TEST(LooseInputs, ValidateScoresAProbeDriftLikeFitAndResidual) {
+  ScratchDir d;
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  for (auto& meas : m["network"]["measurements"])
+    if (meas["column"] == "T1") meas["drift"] = "d_T1";
+  m["network"]["parameters"].push_back({{"name", "d_T1"}, {"unit", "K/h"}, {"nominal", 0}, {"initial", 0}, {"min", -10},
+                                         {"max", 10}, {"fixed", false}, {"log", false}});
+  m["parameters"]["d_T1"] = 0.0;
+  write_text(d.file("still.json"), m.dump(1));
+  m["parameters"]["d_T1"] = 5.0;
+  write_text(d.file("drift.json"), m.dump(1));
+  write_text(d.file("rec.csv"), recording_csv(400));
+  // the same recording with T1 drifting 5 K/h (rows every 10 s)
+  write_text(d.file("drifted.csv"), recording_csv(400, [](int row, int col, const std::string& text) {
+               if (col != 3) return text;
+               char buf[32];
+               std::snprintf(buf, sizeof buf, "%.4f", std::stod(text) + 5.0 * 10.0 * row / 3600.0);
+               return std::string(buf);
+             }));
+  const auto t1_rmse = [&](const char* model, const char* rec) {
+    const CliResult r = run_btsm(d, std::string("validate ") + model + " " + rec + " --json", 60);
+    EXPECT_EQ(r.code, 0) << r.err;
+    return nlohmann::json::parse(r.out)["recordings"][0]["nodes"]["T1"]["all"]["rmse_K"].get<double>();
+  };
+  const double plain = t1_rmse("still.json", "rec.csv");
+  EXPECT_NEAR(t1_rmse("drift.json", "drifted.csv"), plain, 1e-3) << "the drift the model holds is part of its prediction";
+  EXPECT_GT(t1_rmse("still.json", "drifted.csv"), plain + 0.1);
+}
+
 // The fourth probe (27 Nov): a run a hair above a whole board step spun for ever; --channels with
 // two entries left three channels unmodelled; a negative --initial-rows wrapped to 2^64 - 1.
 TEST(LooseInputs, FourthProbeRunsEndAndChannelMapsAreWhole) {
