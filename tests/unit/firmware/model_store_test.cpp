@@ -92,6 +92,19 @@ std::vector<uint8_t> active_blob(ModelStore<Storage>& store) {
   return b;
 }
 
+// Uploads `blob` (development key) through `store` and boots a second store on the same EEPROM:
+// the new model is active with sequence `seq` before and after the reboot.
+void upload_and_reboot(sim::NativeBoard& board, ModelStore<Storage>& store, ModelRuntime& rt,
+                       const std::vector<uint8_t>& blob, uint32_t seq) {
+  const auto key = test::dev_key();
+  ASSERT_EQ(upload(board, store, rt, blob, key, key).commit, Nack::Ok);
+  EXPECT_EQ(store.active_seq(), seq);
+  ModelStore<Storage> rebooted(board.storage);
+  rebooted.boot(rt);
+  EXPECT_EQ(rebooted.active_seq(), seq);
+  EXPECT_EQ(active_blob(rebooted), blob) << "another model than the last one flashed is active after the reboot";
+}
+
 // Field by field (the structs have padding).
 void expect_same(const ModelRuntime& rt, const ModelSchedule& s, const ChannelLimits* l) {
   EXPECT_EQ(rt.n_breakpoints, s.n_breakpoints);
@@ -148,13 +161,7 @@ TEST(ModelStore, AcceptedUploadSurvivesReboot) {
   expect_same(loaded, ref.schedule, ref.limits);
   EXPECT_EQ(loaded.role[0], 3) << "the channel map survives the reboot";
   // A second model goes to the other slot with the next sequence number.
-  const auto blob2 = test::model_blob(1.0);
-  ASSERT_EQ(upload(board, again, loaded, blob2, key, key).commit, Nack::Ok);
-  EXPECT_EQ(again.active_seq(), 2u);
-  ModelStore<Storage> third(board.storage);
-  third.boot(loaded);
-  EXPECT_EQ(third.active_seq(), 2u);
-  EXPECT_EQ(active_blob(third), blob2);
+  upload_and_reboot(board, again, loaded, test::model_blob(1.0), 2u);
 }
 
 // A slot with sequence 0xFFFFFFFF (a corrupted or hostile image): the next model gets sequence 0,
@@ -179,15 +186,8 @@ TEST(ModelStore, TheSequenceWrapsAndTheNewestModelStaysActive) {
   ModelStore<Storage> store(board.storage);
   store.boot(m);
   ASSERT_EQ(store.active_seq(), 0xFFFFFFFFu);
-  const auto blob2 = test::model_blob(1.0);
-  ASSERT_EQ(upload(board, store, m, blob2, key, key).commit, Nack::Ok);
-  EXPECT_EQ(store.active_seq(), 0u);
-  ModelStore<Storage> rebooted(board.storage);
-  rebooted.boot(m);
-  EXPECT_EQ(rebooted.active_seq(), 0u);
-  EXPECT_EQ(active_blob(rebooted), blob2) << "the old model came back at the reset";
-  ASSERT_EQ(upload(board, rebooted, m, test::model_blob(), key, key).commit, Nack::Ok);
-  EXPECT_EQ(rebooted.active_seq(), 1u);
+  upload_and_reboot(board, store, m, test::model_blob(1.0), 0u);  // the old model came back at the reset
+  upload_and_reboot(board, store, m, test::model_blob(), 1u);
 }
 
 // The firmware steps the model with coefficients read from EEPROM and interpolated member by
