@@ -45,8 +45,10 @@ void run(const RtdOptions& o, Direction dir) {
     const RtdResult<double> r = r2t ? rtd_temperature(k, x) : rtd_resistance(k, x);
     if (!r.ok()) {
       const std::string range =
-          r2t ? fmt::format("valid {:.4f}...{:.4f} ohm for R0 = {} ohm", rtd_resistance(k, -200.0).value,
-                            rtd_resistance(k, 850.0).value, o.r0_ohm)
+          r2t ? fmt::format("valid {:.4f}...{:.4f} ohm for R0 = {} ohm, -200...850 degC, read up to {:g} K beyond "
+                            "as the firmware reads them",
+                            rtd_resistance(k, -200.0).value, rtd_resistance(k, 850.0).value, o.r0_ohm,
+                            static_cast<double>(kRtdInverseMarginC))
               : std::string("valid -200...850 degC");
       errors.push_back(fmt::format("value #{} '{}' {}: {} ({})", i + 1, v, in_unit, rtd_status_name(r.status), range));
       continue;

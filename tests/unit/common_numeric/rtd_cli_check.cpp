@@ -88,6 +88,10 @@ TEST(RtdCli, OutOfRangeAndNonNumericInputNameTheValue) {
   EXPECT_NE(res.out.find("'12.0'"), std::string::npos) << res.out;
   EXPECT_NE(res.out.find("below"), std::string::npos) << res.out;
   EXPECT_EQ(res.out.find("138.5"), std::string::npos) << "no partial output on error: " << res.out;
+  // The range a refusal prints is the one checked: 3904.82 ohm (0.009 above R(850 degC)) is read
+  // as 850.003 degC, so the message says how far beyond the table values are still read (probe 5).
+  res = run_cmd(btsm() + " rtd r2t 3904.9", true);
+  EXPECT_NE(res.out.find("read up to 0.02 K beyond"), std::string::npos) << res.out;
   res = run_cmd(btsm() + " rtd t2r 20 twenty 900", true);
   EXPECT_EQ(res.exit_code, 2);
   EXPECT_NE(res.out.find("'twenty' is not a number"), std::string::npos) << res.out;
