@@ -53,6 +53,12 @@ PtyBridge::~PtyBridge() {
   if (master_ >= 0) close(master_);
 }
 
+bool PtyBridge::link_still_ours() const {
+  char target[256] = {};
+  const ssize_t n = readlink(link_path_.c_str(), target, sizeof target - 1);
+  return n > 0 && slave_name_ == std::string(target, size_t(n));
+}
+
 bool PtyBridge::host_connected() const {
   pollfd p{master_, POLLOUT, 0};
   poll(&p, 1, 0);

@@ -29,6 +29,8 @@ class PtyBridge {
   const std::string& replaced_live_target() const { return replaced_live_target_; }
 
   bool host_connected() const;
+  // Whether the symlink still leads to this pty (a newer module on the same path replaces it).
+  bool link_still_ours() const;
   // Non-blocking; returns bytes read (0 = nothing now).
   size_t read(uint8_t* buf, size_t n);
   // Non-blocking; returns bytes accepted (0 = buffer full).

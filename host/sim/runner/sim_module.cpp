@@ -156,6 +156,7 @@ void SimModule::thread_main() {
     double pace_sim = sim_time_s();
     bool waiting_logged = false;
     bool host_seen = false;           // a host has had the pty open since the start
+    bool taken_over = false;          // the link now leads to a newer module's pty
     auto host_last_seen = Clock::now();
     while (!stop_ && sim_time_s() < opts_.duration_s - 1e-9) {
       // Host synchronisation: do not advance while nobody listens or the host lags behind.
@@ -182,6 +183,14 @@ void SimModule::thread_main() {
               log("sim-module: the host closed " + opts_.pty_path + line);
               break;
             }
+            // A newer module took the link: no host can open this one any more, and one typed
+            // while the newer one started reached this one (a README block pasted twice). End.
+            if (!connected && !pty_->bridge.link_still_ours()) {
+              taken_over = true;
+              log("sim-module: " + opts_.pty_path + " now leads to another module; ending at t = " +
+                  std::to_string(static_cast<long>(board_->time_s())) + " s");
+              break;
+            }
             lk.unlock();
             if (!connected && !waiting_logged) {
               log("sim-module: waiting for a host to open " + opts_.pty_path);
@@ -196,7 +205,7 @@ void SimModule::thread_main() {
           }
           waited = true;
         }
-        if (stats_.ended_host_gone) break;  // written by this thread only
+        if (stats_.ended_host_gone || taken_over) break;  // written by this thread only
         if (waited) {
           const double dt = std::chrono::duration<double>(Clock::now() - w0).count();
           std::lock_guard<std::mutex> lk(mu_);

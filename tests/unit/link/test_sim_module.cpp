@@ -13,6 +13,7 @@
 #include <iostream>
 
 #include <chrono>
+#include <future>
 #include <cmath>
 #include <limits>
 #include <thread>
@@ -164,6 +165,11 @@ TEST(SimModuleLink, ASecondModuleOnALiveLinkSaysSo) {
   ASSERT_FALSE(said.empty());
   EXPECT_NE(said[0].find("WARNING: " + o.pty_path + " led to /dev/pts/"), std::string::npos) << said[0];
   EXPECT_NE(said[0].find("another sim-module still running?"), std::string::npos) << said[0];
+  // ... and the old module, which no host can open any more, ends by itself (its 2 h profile had
+  // hardly begun): a block run again no longer finds the previous module behind the link.
+  auto ended = std::async(std::launch::async, [&] { first->wait(); });
+  EXPECT_EQ(ended.wait_for(std::chrono::seconds(20)), std::future_status::ready);
+  if (ended.wait_for(std::chrono::seconds(0)) != std::future_status::ready) first->stop();
 }
 
 TEST(SimModuleLink, RecordingSaysWhichFaultEmptiedACell) {
