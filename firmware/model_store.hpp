@@ -80,6 +80,7 @@ class ModelStore {
         break;
       }
     }
+    if (next_seq_ == 0) next_seq_ = 1;  // 0 is what INFO reports without an active model
     for (uint8_t k = 0; k < 2; ++k) {
       const uint8_t s = order[k];
       if (!ok[s]) continue;
@@ -217,7 +218,7 @@ class ModelStore {
     pending_activation_ = false;
     active_slot_ = target_slot_;
     active_seq_ = next_seq_;
-    ++next_seq_;
+    if (++next_seq_ == 0) next_seq_ = 1;  // 0 is what INFO reports without an active model
     state_ = wire::ModelState::Active;
   }
 

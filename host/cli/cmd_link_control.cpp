@@ -116,8 +116,10 @@ void warn_about_active_model(Session& session) {
     for (const auto& w : mc.conflicts)
       std::cerr << "set-config: WARNING: the active model no longer fits the roles: " << w << "\n";
     for (const auto& w : mc.warnings) std::cerr << "set-config: warning: " << w << "\n";
-  } catch (const link::NackError&) {
-    // firmware without MODEL_READ/GET_CONFIG: `info` says what it can
+  } catch (const std::exception& e) {
+    // firmware without MODEL_READ/GET_CONFIG, or the link failing after the acknowledged change:
+    // the change stands; `info` says what it can
+    std::cerr << "set-config: could not check the active model's channel map (" << e.what() << "); `btsm info` shows it\n";
   }
 }
 

@@ -51,7 +51,7 @@ void authenticate_upload(Session& session, const DeviceKey& key, const AuthChall
 [[noreturn]] void link_lost_after_commit(const LinkError& e, bool commit_acknowledged, std::span<const uint8_t> blob,
                                          const Info& before) {
   const uint32_t new_crc = blob.size() == kReducedModelBlobSize ? blob_stored_crc(blob.data()) : crc32(blob.data(), blob.size());
-  const std::string check = fmt::format("Check with `btsm info`: model crc {:08x} with a model seq above {} is the new model", new_crc,
+  const std::string check = fmt::format("Check with `btsm info`: model crc {:08x} with a model seq other than {} is the new model", new_crc,
                                         before.model_seq);
   if (commit_acknowledged)
     throw LinkError(e.kind(), fmt::format("the module accepted the commit (the new model is stored), then the link was lost "

@@ -56,7 +56,9 @@ PtyBridge::~PtyBridge() {
 bool PtyBridge::link_still_ours() const {
   char target[256] = {};
   const ssize_t n = readlink(link_path_.c_str(), target, sizeof target - 1);
-  return n > 0 && slave_name_ == std::string(target, size_t(n));
+  // Only a link that leads elsewhere counts: a link deleted (or being replaced: unlink, then
+  // symlink) says nothing of another module.
+  return n <= 0 || slave_name_ == std::string(target, size_t(n));
 }
 
 bool PtyBridge::host_connected() const {

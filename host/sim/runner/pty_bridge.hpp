@@ -29,7 +29,7 @@ class PtyBridge {
   const std::string& replaced_live_target() const { return replaced_live_target_; }
 
   bool host_connected() const;
-  // Whether the symlink still leads to this pty (a newer module on the same path replaces it).
+  // False only when the symlink leads to another pty (a newer module on the same path took it).
   bool link_still_ours() const;
   // Non-blocking; returns bytes read (0 = nothing now).
   size_t read(uint8_t* buf, size_t n);

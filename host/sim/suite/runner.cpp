@@ -232,7 +232,16 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
   rep.wall_s = std::chrono::duration<double>(Clock::now() - t0).count();
   // Beside-and-rename with every write checked (probe 5: /dev/full and a directory in the way
   // were "written", a symlinked results.json was written through to its target).
-  io::write_output_file((out / "results.csv").string(), results_csv(results), "suite results");
+  // Each output is tried: one that cannot be written must not cost the others a long run's results.
+  std::string write_errors;
+  const auto write = [&](const fs::path& path, const std::string& text, const char* what) {
+    try {
+      io::write_output_file(path.string(), text, what);
+    } catch (const std::exception& e) {
+      write_errors += (write_errors.empty() ? "" : "; ") + std::string(e.what());
+    }
+  };
+  write(out / "results.csv", results_csv(results), "suite results");
   nlohmann::json j;
   j["cases"] = nlohmann::json::array();
   for (const auto& r : results) j["cases"].push_back(to_json(r));
@@ -248,8 +257,9 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
                           {"goal", row.goal},
                           {"errors", row.errors}});
   j["wall_s"] = rep.wall_s;
-  io::write_output_file((out / "results.json").string(), j.dump(1) + "\n", "suite results");
-  io::write_output_file((out / "table.md").string(), rep.table_md, "suite table");
+  write(out / "results.json", j.dump(1) + "\n", "suite results");
+  write(out / "table.md", rep.table_md, "suite table");
+  if (!write_errors.empty()) throw std::runtime_error(write_errors);
   return rep;
 }
 

@@ -269,9 +269,13 @@ TEST(LooseInputs, FifthProbeSuiteAnswersAndOutputs) {
   EXPECT_FALSE(std::filesystem::is_symlink(d.file("s/results.json")));
   std::filesystem::remove(d.file("s/results.csv"));
   std::filesystem::create_directory(d.file("s/results.csv"));
+  std::filesystem::remove(d.file("s/results.json"));
+  std::filesystem::remove(d.file("s/table.md"));
   r = run_btsm(d, cmd);
   EXPECT_EQ(r.code, 1) << r.err;  // was "written", exit 0
   EXPECT_NE(r.err.find("results.csv"), std::string::npos) << r.err;
+  EXPECT_TRUE(file_exists(d.file("s/results.json"))) << "one output in the way cost the others";
+  EXPECT_TRUE(file_exists(d.file("s/table.md")));
 }
 
 // The fifth probe: outputs named twice or unwritable only at the end, and plots written over each other.
