@@ -146,13 +146,9 @@ RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd
       // A drifting probe reads its node + drift x hours + its own offset in this recording (the
       // least-squares constant, as fit and residual take it): scored without it, a 1e10 K/h drift
       // scored like none while heat and residual applied it (probe 5).
-      double sum = 0;
-      Eigen::Index n = 0;
-      for (Eigen::Index k = 0; k < rows; ++k) {
+      for (Eigen::Index k = 0; k < rows; ++k)
         pred[k] += params[d] * (rec.time_s[static_cast<std::size_t>(k)] - rec.time_s.front()) / 3600.0;
-        if (std::isfinite(meas[k]) && std::isfinite(pred[k])) sum += meas[k] - pred[k], ++n;
-      }
-      if (n > 0) pred.array() += sum / static_cast<double>(n);
+      pred.array() += drift_offset_k(meas - pred);
     }
     v.all.push_back(error_metrics(meas, pred));
     Eigen::VectorXd mo = meas, mc = meas;

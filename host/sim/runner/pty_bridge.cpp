@@ -12,16 +12,21 @@
 
 namespace btsm::sim {
 
+namespace {
+// Where the symlink `path` leads ("" when it is no symlink or cannot be read).
+std::string link_target(const std::string& path) {
+  char target[256] = {};
+  const ssize_t n = readlink(path.c_str(), target, sizeof target - 1);
+  return n > 0 ? std::string(target, size_t(n)) : std::string();
+}
+}  // namespace
+
 PtyBridge::PtyBridge(const std::string& link_path) : link_path_(link_path) {
   struct stat st {};
   if (lstat(link_path.c_str(), &st) == 0 && !S_ISLNK(st.st_mode))
     throw std::runtime_error("pty: " + link_path + " exists and is not a symlink; not replacing it");
-  if (lstat(link_path.c_str(), &st) == 0) {
-    char target[256] = {};
-    struct stat live {};
-    const ssize_t n = readlink(link_path.c_str(), target, sizeof target - 1);
-    if (n > 0 && stat(link_path.c_str(), &live) == 0 && S_ISCHR(live.st_mode)) replaced_live_target_.assign(target, size_t(n));
-  }
+  struct stat live {};
+  if (stat(link_path.c_str(), &live) == 0 && S_ISCHR(live.st_mode)) replaced_live_target_ = link_target(link_path);
   int slave = -1;
   char name[256] = {};
   if (openpty(&master_, &slave, name, nullptr, nullptr) != 0)
@@ -47,18 +52,15 @@ PtyBridge::PtyBridge(const std::string& link_path) : link_path_(link_path) {
 }
 
 PtyBridge::~PtyBridge() {
-  char target[256] = {};
-  const ssize_t n = readlink(link_path_.c_str(), target, sizeof target - 1);
-  if (n > 0 && slave_name_ == std::string(target, size_t(n))) unlink(link_path_.c_str());
+  if (link_target(link_path_) == slave_name_) unlink(link_path_.c_str());
   if (master_ >= 0) close(master_);
 }
 
 bool PtyBridge::link_still_ours() const {
-  char target[256] = {};
-  const ssize_t n = readlink(link_path_.c_str(), target, sizeof target - 1);
   // Only a link that leads elsewhere counts: a link deleted (or being replaced: unlink, then
   // symlink) says nothing of another module.
-  return n <= 0 || slave_name_ == std::string(target, size_t(n));
+  const std::string target = link_target(link_path_);
+  return target.empty() || target == slave_name_;
 }
 
 bool PtyBridge::host_connected() const {
