@@ -173,6 +173,17 @@ void run_heat(const HeatArgs& a) {
                                                  "or sample steps far longer than the model's fast modes: check with btsm "
                                                  "validate); nothing written",
                                                  a.recording, r.dof, observations));
+  // A fit that misses by far more than the recording's whole temperature span explains nothing:
+  // its heat would be numbers, not an estimate (a model's probe drift of 1e10 K/h gave 6.7e9 K).
+  double lo = INFINITY, hi = -INFINITY;
+  for (Eigen::Index i = 0; i < rec.temp_c.size(); ++i)  // as read: p.measured has the model's probe drift taken off
+    if (std::isfinite(rec.temp_c.data()[i])) lo = std::min(lo, rec.temp_c.data()[i]), hi = std::max(hi, rec.temp_c.data()[i]);
+  const double span_k = hi >= lo ? hi - lo : 0.0;
+  if (r.residual_rms_k > 10.0 * (span_k + 1.0))
+    throw CommandError(kExitFailure, fmt::format("{}: model {} misses this recording by {:.4g} K rms, while its temperatures span "
+                                                 "{:.4g} K: the model does not describe it (a probe drift, a source or a "
+                                                 "conductance far off? check it with btsm validate); nothing written",
+                                                 a.recording, a.model, r.residual_rms_k, span_k));
   if (!a.out_dir.empty()) write_outputs(a, model.network, rec, p, r, cols);
 
   const int m = static_cast<int>(p.source_nodes.size());

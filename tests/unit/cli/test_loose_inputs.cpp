@@ -334,6 +334,17 @@ TEST(LooseInputs, ValidateScoresAProbeDriftLikeFitAndResidual) {
   const double plain = t1_rmse("still.json", "rec.csv");
   EXPECT_NEAR(t1_rmse("drift.json", "drifted.csv"), plain, 1e-3) << "the drift the model holds is part of its prediction";
   EXPECT_GT(t1_rmse("still.json", "drifted.csv"), plain + 0.1);
+  // heat applies the same drift; one far beyond the recording (1e10 K/h, bounds widened) gave
+  // 6.7e9 K residuals and heat in 1e10 W with exit 0. Now refused, nothing written.
+  EXPECT_EQ(run_btsm(d, "heat drift.json drifted.csv --step 600 --out h5", 120).code, 0);
+  m["network"]["parameters"].back()["min"] = -1e12;
+  m["network"]["parameters"].back()["max"] = 1e12;
+  m["parameters"]["d_T1"] = 1e10;
+  write_text(d.file("absurd.json"), m.dump(1));
+  const CliResult h = run_btsm(d, "heat absurd.json drifted.csv --step 600 --out habs", 120);
+  EXPECT_EQ(h.code, 1) << h.err;
+  EXPECT_NE(h.err.find("does not describe it"), std::string::npos) << h.err;
+  EXPECT_FALSE(file_exists(d.file("habs/heat_sources.csv")));
 }
 
 // The fourth probe (27 Nov): a run a hair above a whole board step spun for ever; --channels with
