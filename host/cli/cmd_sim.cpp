@@ -21,6 +21,9 @@
 namespace btsm::cli {
 namespace {
 
+// Whole seconds as before; a run under 100 s keeps its fraction ("100ms@6000" said "0 s simulated").
+std::string seconds_text(double s) { return s < 100.0 ? fmt::format("{:.3g}", s) : fmt::format("{:.0f}", s); }
+
 std::atomic<bool> g_interrupted{false};
 extern "C" void on_sigint(int) { g_interrupted = true; }
 
@@ -117,8 +120,8 @@ void run_sim(const SimArgs& a) {
   } catch (const std::runtime_error& e) {
     throw CommandError(kExitFailure, e.what());
   }
-  std::cerr << fmt::format("sim-module: {} board, pty {} -> {}, {:.0f} s simulated, time scale {}\n",
-                           m->board_kind(), a.pty, m->pty_slave(), o.duration_s, a.time_scale);
+  std::cerr << fmt::format("sim-module: {} board, pty {} -> {}, {} s simulated, time scale {}\n",
+                           m->board_kind(), a.pty, m->pty_slave(), seconds_text(o.duration_s), a.time_scale);
   g_interrupted = false;
   auto old = std::signal(SIGINT, on_sigint);
   auto old_term = std::signal(SIGTERM, on_sigint);
@@ -179,9 +182,9 @@ void run_sim(const SimArgs& a) {
   } else {
     // wall_time_s is computing only (not the waits for a host, nor the sleeps that pace a
     // --time-scale run): "in 0.0 s (8611x)" of a run paced at 50x read as a broken pace.
-    std::cerr << fmt::format("sim-module: done, {:.0f} s simulated with {:.1f} s of computing ({:.0f}x real time while "
+    std::cerr << fmt::format("sim-module: done, {} s simulated with {:.1f} s of computing ({:.0f}x real time while "
                              "computing){}, {:.1f} s waiting for a host, {} bytes to host\n",
-                             s.sim_time_s, s.wall_time_s, s.wall_time_s > 0 ? s.sim_time_s / s.wall_time_s : 0.0,
+                             seconds_text(s.sim_time_s), s.wall_time_s, s.wall_time_s > 0 ? s.sim_time_s / s.wall_time_s : 0.0,
                              o.time_scale > 0 ? fmt::format(", paced to {:g}x", o.time_scale) : std::string(), s.waited_s,
                              s.bytes_to_host);
   }

@@ -115,7 +115,12 @@ double parse_duration_s(const std::string& text, const std::string& what) {
   } else if (ends_with("s")) {
     t.resize(t.size() - 1);
   }
-  const double v = parse_number(t, what) * scale;
+  double v = 0;
+  try {
+    v = parse_number(t, what) * scale;
+  } catch (const std::invalid_argument&) {  // quoted as written: '1mm' was reported as '1m'
+    throw std::invalid_argument(what + ": '" + text + "' is not a duration (a number, optionally with s, ms, m, min or h)");
+  }
   if (v < 0.0) throw std::invalid_argument(what + ": '" + text + "' is negative");
   if (!(v <= kMaxDurationS))
     throw std::invalid_argument(what + ": '" + text + "' is longer than the " + std::to_string(static_cast<long long>(kMaxDurationS)) +

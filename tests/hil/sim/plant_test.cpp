@@ -63,6 +63,12 @@ TEST(SpeedProfile, EmptyItemsHexAndVanishingSegmentsAreRefused) {
     }
   }
   EXPECT_EQ(SpeedProfile::parse("1m @ 6000, 200ms@0 30s@100").segments().size(), 3u);
+  try {  // probe 5 P3-10: the item is quoted as written ('1mm' was reported as '1m')
+    SpeedProfile::parse("1mm@6000");
+    ADD_FAILURE() << "accepted 1mm";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("'1mm' is not a duration"), std::string::npos) << e.what();
+  }
   EXPECT_THROW(AmbientProfile::parse("20,,1h@22"), std::invalid_argument);
   EXPECT_THROW(AmbientProfile::parse("20,1h@0x16"), std::invalid_argument);
   const std::string path = testing::TempDir() + "/profile_bom.txt";
