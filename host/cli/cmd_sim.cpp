@@ -235,6 +235,7 @@ void register_sim_commands(CLI::App& app) {
                   "run-in:W/TAU (= transient:W/TAU@rear_bearing+front_bearing), "
                   "transient:W/TAU@NODES (W per 1000 rpm of speed increase, decaying with TAU), "
                   "transient-gain:A/TAU@NODES (friction source x (1 + A e^-t/TAU) after each start or speed change), "
+                  "transient-start:W/TAU@NODES, transient-gain-start:A/TAU@NODES (the same, restarted by starts from standstill only), "
                   "temp-heat:K@NODES (friction source x (1 + K theta), 1/K, may be < 0), "
                   "coupled-heat:G@NODE/HOT-COLD[^E] (G (w/w0)^E (T_HOT - T_COLD) W while running, G in W/K), "
                   "speed-heat:W@NODE[^E] (W (w/w0)^E while running), sensor-lag:TAU@chN, sensor-drift:RATE@chN (K/h), "

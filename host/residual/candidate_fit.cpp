@@ -36,7 +36,7 @@ int largest_capacitance_param(const th::Network& net, const Eigen::VectorXd& p) 
 std::vector<Eigen::MatrixXd> impulses_for(const AugmentedModel& am, const std::vector<th::Recording>& recs) {
   std::vector<Eigen::MatrixXd> out;
   if (am.transient_node < 0) return out;
-  for (const auto& r : recs) out.push_back(transient_impulses_w(am.net, r, am.transient_node, am.trigger));
+  for (const auto& r : recs) out.push_back(transient_impulses_w(am.net, am.params, r, am.transient_node, am.trigger));
   return out;
 }
 
@@ -280,6 +280,41 @@ CandidateResult candidate_of(const Proposal& p, const th::Network& base) {
   c.screening_score = p.score;
   c.stability = p.stability;
   return c;
+}
+
+bool starts_only_restarts_alike(const th::Network& base, const std::vector<th::Recording>& recs) {
+  for (const auto& r : recs)
+    if (transient_triggers(base, r, TransientTrigger::StartOrChange) != transient_triggers(base, r, TransientTrigger::Start)) return false;
+  return true;
+}
+
+CandidateResult starts_only_twin(const CandidateContext& ctx, const CandidateResult& c) {
+  CandidateResult t = c;
+  t.spec.trigger = t.trigger = TransientTrigger::Start;
+  const auto swap_words = [](std::string& text) {
+    for (const auto& [from, to] : {std::pair<std::string, std::string>{trigger_name(TransientTrigger::StartOrChange),
+                                                                        trigger_name(TransientTrigger::Start)},
+                                   {"every start or speed change", "every start from standstill"},
+                                   {"each start or speed change", "each start from standstill"},
+                                   {"W per start/change", "W per start"}})
+      for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) text.replace(at, from.size(), to);
+  };
+  swap_words(t.variant);
+  t.variant += " (the same fit as the start-or-change variant: no fit recording changes speed while turning)";
+  for (EffectQuantity& q : t.quantities) {
+    swap_words(q.meaning);
+    swap_words(q.unit);
+  }
+  std::vector<Eigen::MatrixXd> rc;
+  for (const auto& r : *ctx.check) rc.push_back(evaluate_candidate(t, r).residual_k);
+  t.check = error_metrics(rc, ctx.measured_check);
+  t.check_factor = t.check.rmse_k > 0 ? ctx.before_check.rmse_k / t.check.rmse_k : 0;
+  const auto tau = std::find_if(t.quantities.begin(), t.quantities.end(), [](const EffectQuantity& q) { return q.name == "tau_transient"; });
+  if (tau != t.quantities.end()) {
+    t.fit_triggers = trigger_coverage(t.net, *ctx.fit, t.trigger, tau->value);
+    t.check_triggers = trigger_coverage(t.net, *ctx.check, t.trigger, tau->value);
+  }
+  return t;
 }
 
 // The share of the base fit's residual sum of squares (on the fit recordings) that one measured

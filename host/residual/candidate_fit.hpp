@@ -51,6 +51,15 @@ CandidateResult candidate_of(const Proposal& p, const thermal::Network& base);
 // reason are left to the decision. A failing fit gives status "failed" with the error as the reason.
 CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p);
 
+// True when no recording in `recs` changes speed while turning: there every start-or-change
+// transient restarts at the same rows as a starts-only one, so both fit those recordings alike.
+bool starts_only_restarts_alike(const thermal::Network& base, const std::vector<thermal::Recording>& recs);
+// The starts-only twin of a fitted start-or-change transient whose fit recordings restart both
+// alike (starts_only_restarts_alike on ctx.fit): its refit would be this one, so the twin carries
+// the same fit evidence and parameters; only the check run (speed changes while turning) tells
+// them apart, and its check evidence is its own.
+CandidateResult starts_only_twin(const CandidateContext& ctx, const CandidateResult& c);
+
 // The candidate without its `drop`-th node, refitted jointly from its values (status "fitted").
 CandidateResult refit_fewer_nodes(const CandidateContext& ctx, const CandidateResult& c, std::size_t drop);
 

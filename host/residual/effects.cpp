@@ -130,7 +130,12 @@ EffectKind parse_effect_kind(const std::string& name) {
 }
 
 const char* trigger_name(TransientTrigger t) {
-  return t == TransientTrigger::SpeedIncrease ? "every speed increase (per 1000 rpm)" : "every start or speed change";
+  switch (t) {
+    case TransientTrigger::SpeedIncrease: return "every speed increase (per 1000 rpm)";
+    case TransientTrigger::StartOrChange: return "every start or speed change (restarting)";
+    case TransientTrigger::Start: break;
+  }
+  return "every start from standstill (restarting; not a speed change while turning)";
 }
 
 std::string effect_label(const EffectSpec& e, const th::Network& net) {
@@ -415,24 +420,41 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
   return m;
 }
 
-std::vector<double> transient_triggers(const th::Network& net, const th::Recording& rec, TransientTrigger trigger) {
+std::vector<double> transient_triggers(const th::Network& net, const th::Recording& rec, TransientTrigger trigger, double restart_tau_s) {
   std::vector<double> u(rec.rows(), 0.0);
-  double prev = 0;  // a recording starts from standstill
+  double prev = 0;    // a recording starts from standstill
+  double left = 0.0;  // StartOrChange: the share of the last restart still decaying
   for (std::size_t k = 0; k < rec.rows(); ++k) {
+    if (k > 0 && restart_tau_s > 0) left *= std::exp(-(rec.time_s[k] - rec.time_s[k - 1]) / restart_tau_s);
     const double w = rec.speed_rpm[k];
     const bool running = net.mode_at(w) == th::Mode::Operating;
-    if (running && w != prev) {
-      if (trigger == TransientTrigger::SpeedIncrease) u[k] = std::max(0.0, w - (net.mode_at(prev) == th::Mode::Operating ? prev : 0.0)) / 1000.0;
-      else u[k] = 1.0;
+    const bool was_running = net.mode_at(prev) == th::Mode::Operating;
+    if (running && w != prev && (trigger != TransientTrigger::Start || !was_running)) {
+      if (trigger == TransientTrigger::SpeedIncrease) {
+        u[k] = std::max(0.0, w - (was_running ? prev : 0.0)) / 1000.0;
+      } else {
+        // a restart, not a second helping: the extra heat is back at its full size however much
+        // of the last one was left (1 - left tops the state up to one trigger unit)
+        u[k] = restart_tau_s > 0 ? 1.0 - left : 1.0;
+        left = 1.0;
+      }
     }
     prev = w;
   }
   return u;
 }
 
-Eigen::MatrixXd transient_impulses_w(const th::Network& net, const th::Recording& rec, int node, TransientTrigger trigger) {
+double transient_tau_s(const th::Network& net, const Eigen::VectorXd& params) {
+  double g = 0;
+  for (int i = 0; i < net.param_count(); ++i)
+    if (net.params[static_cast<std::size_t>(i)].name.rfind("g_transient_", 0) == 0 && i < params.size()) g += params[i];
+  return g > 0 ? kTransientCapacitance / g : 0.0;
+}
+
+Eigen::MatrixXd transient_impulses_w(const th::Network& net, const Eigen::VectorXd& params, const th::Recording& rec, int node,
+                                     TransientTrigger trigger) {
   if (node < 0 || node >= net.node_count()) throw std::invalid_argument("heat_source_transient: node index out of range");
-  const std::vector<double> u = transient_triggers(net, rec, trigger);
+  const std::vector<double> u = transient_triggers(net, rec, trigger, transient_tau_s(net, params));
   const auto rows = static_cast<Eigen::Index>(rec.rows());
   Eigen::MatrixXd q = Eigen::MatrixXd::Zero(rows, net.node_count());
   for (Eigen::Index k = 0; k + 1 < rows; ++k)
@@ -468,9 +490,14 @@ std::vector<EffectQuantity> effect_quantities(const AugmentedModel& m, const Eff
           const double share = q0 > 0 ? a / q0 : std::numeric_limits<double>::quiet_NaN();
           out.push_back({"a_transient_" + node_name(n), "W at w0", a, as,
                          fmt::format("{} of the {} friction heat right after {}", signed_pct(share), node_name(n),
-                                     e.trigger == TransientTrigger::SpeedIncrease ? "each 1000 rpm of increase" : "each start or speed change")});
+                                     e.trigger == TransientTrigger::SpeedIncrease   ? "each 1000 rpm of increase"
+                                     : e.trigger == TransientTrigger::StartOrChange ? "each start or speed change"
+                                                                                     : "each start from standstill")});
         } else {
-          out.push_back({"a_transient_" + node_name(n), e.trigger == TransientTrigger::SpeedIncrease ? "W per 1000 rpm of increase" : "W per start/change",
+          out.push_back({"a_transient_" + node_name(n),
+                         e.trigger == TransientTrigger::SpeedIncrease   ? "W per 1000 rpm of increase"
+                         : e.trigger == TransientTrigger::StartOrChange ? "W per start/change"
+                                                                         : "W per start",
                          a, as, fmt::format("{:+.3g} W at {} right after {}", a, node_name(n), trigger_name(e.trigger))});
         }
       }

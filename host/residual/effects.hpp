@@ -64,7 +64,9 @@ const char* effect_name(EffectKind k);
 EffectKind parse_effect_kind(const std::string& name);  // throws std::invalid_argument listing the names
 std::vector<EffectKind> all_effect_kinds();
 
-enum class TransientTrigger { SpeedIncrease, StartOrChange };
+// SpeedIncrease: every increase adds its 1000-rpm units (several pile up); StartOrChange: every
+// start or speed change restarts the transient; Start: only a start from standstill restarts it.
+enum class TransientTrigger { SpeedIncrease, StartOrChange, Start };
 const char* trigger_name(TransientTrigger t);
 
 struct EffectSpec {
@@ -88,12 +90,16 @@ std::vector<std::string> effect_nodes(const EffectSpec& e, const thermal::Networ
 
 // The virtual node's coupling g (T_transient - T_n) also carries -g (T_n - T_ambient) once the
 // state has decayed: a leak the plant's run-in heat does not have. It is g T_n against the
-// impulse's E/C, so C is small: 1 J/K puts the state 1e6 K above the ambient per trigger unit and
-// the leak at 1e-6 of the amplitude per kelvin (at C = 1000 J/K it was 1e-3: a 5.6 W/1000 rpm
+// impulse's E/C, so C is small: 1 J/K puts the state 1e9 K above the ambient per trigger unit and
+// the leak at 1e-9 of the amplitude per kelvin (at C = 1000 J/K it was 1e-3: a 5.6 W/1000 rpm
 // transient then lost 0.1-0.2 W at a 20-30 K bearing rise, and with the plant's own base values
-// the family fitted seed 99's recordings to 0.013 K instead of 0.0019 K).
+// the family fitted seed 99's recordings to 0.013 K instead of 0.0019 K). The heat the coupling
+// carries also drains the state, so its decay was C / (g_decay + g (w/w0)^e), faster at high
+// speed: a ~ tau / E of the decay. At E = 1e6 J a 10 W, 37 min run-in drained 2 % and the plant's
+// own values fitted its recordings to 5.5 mK where the noise is 5.0 mK; the joint refit then
+// bought those 2 mK with base values that missed the check run by 58 mK. E = 1e9 J: 2e-5.
 constexpr double kTransientCapacitance = 1.0;      // J/K of the virtual transient node
-constexpr double kTransientImpulse = 1.0e6;        // J per trigger unit (1000 rpm of increase, or one start/change)
+constexpr double kTransientImpulse = 1.0e9;        // J per trigger unit (1000 rpm of increase, or one start/change)
 constexpr double kProbeCapacitance = 1.0;          // J/K of a sensor_lag probe node (R in K/W = tau in s)
 
 // Base network plus one effect.
@@ -120,10 +126,18 @@ AugmentedModel augment(const thermal::Network& base, const Eigen::VectorXd& base
 
 // Known extra heat (rows x nodes, W) that drives the virtual transient node: kTransientImpulse per
 // trigger unit, delivered over the sample interval in which the trigger happens (a recording is
-// taken to start from standstill).
-Eigen::MatrixXd transient_impulses_w(const thermal::Network& net, const thermal::Recording& rec, int node, TransientTrigger trigger);
-// The trigger units of one recording per row (what the impulses are made of).
-std::vector<double> transient_triggers(const thermal::Network& net, const thermal::Recording& rec, TransientTrigger trigger);
+// taken to start from standstill). `params` gives the decay a StartOrChange trigger restarts from.
+Eigen::MatrixXd transient_impulses_w(const thermal::Network& net, const Eigen::VectorXd& params, const thermal::Recording& rec,
+                                     int node, TransientTrigger trigger);
+// The trigger units of one recording per row (what the impulses are made of). SpeedIncrease adds
+// one unit per 1000 rpm of every increase (the extra heat of several piles up); StartOrChange and
+// Start restart the transient at one unit: with restart_tau_s > 0 a trigger adds only what the decay
+// (time constant restart_tau_s) took since the last one, so the extra heat after each start or
+// change is a e^(-t/tau) with t since that trigger (0: every trigger one unit, for counting).
+std::vector<double> transient_triggers(const thermal::Network& net, const thermal::Recording& rec, TransientTrigger trigger,
+                                       double restart_tau_s = 0.0);
+// The decay time [s] of the transient state in an augmented network: C / (g_decay + couplings); 0 without one.
+double transient_tau_s(const thermal::Network& net, const Eigen::VectorXd& params);
 
 // The friction-law exponent of a node's own heat sources (the largest), 1 when it has none.
 double friction_exponent(const thermal::Network& net, int node);

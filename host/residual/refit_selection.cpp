@@ -50,7 +50,7 @@ RefitSelection select_refits(const std::vector<Proposal>& proposals, int max_can
   return s;
 }
 
-std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refitted, double speed_ref_rpm) {
+std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refitted, double speed_ref_rpm, bool with_starts_only) {
   std::vector<Proposal> out;
   const auto sorted_nodes = [](const EffectSpec& e) {
     std::vector<int> n = e.nodes;
@@ -71,21 +71,25 @@ std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refi
   for (const Proposal& p : refitted) {
     if (p.spec.kind != EffectKind::HeatSourceTransient) continue;
     const std::vector<int> nodes = sorted_nodes(p.spec);
-    for (const TransientTrigger t : {TransientTrigger::SpeedIncrease, TransientTrigger::StartOrChange})
+    for (const TransientTrigger t : {TransientTrigger::SpeedIncrease, TransientTrigger::StartOrChange, TransientTrigger::Start})
       for (const bool mult : {false, true}) {
-        if (present(nodes, t, mult)) continue;
+        if (present(nodes, t, mult) || (t == TransientTrigger::Start && !with_starts_only)) continue;
         Proposal q = p;
         q.spec.trigger = t;
         q.spec.multiplicative = mult;
         q.alternative = true;
         // W per unit of p's trigger -> W per unit of t's (x friction law: the same W at w0)
         double scale = 1.0;
-        if (p.spec.trigger == TransientTrigger::SpeedIncrease && t == TransientTrigger::StartOrChange) scale = units_per_start;
-        if (p.spec.trigger == TransientTrigger::StartOrChange && t == TransientTrigger::SpeedIncrease) scale = 1.0 / units_per_start;
+        const bool from_units = p.spec.trigger == TransientTrigger::SpeedIncrease, to_units = t == TransientTrigger::SpeedIncrease;
+        if (from_units && !to_units) scale = units_per_start;
+        if (!from_units && to_units) scale = 1.0 / units_per_start;
         for (double& c : q.coefficients) c *= scale;
         q.variant = fmt::format("{}, {}, tau {:.0f} min (another variant of the screened transient)",
                                 mult ? "x friction law" : "additive",
-                                t == TransientTrigger::SpeedIncrease ? "every speed increase" : "every start or speed change", p.spec.tau_s / 60);
+                                t == TransientTrigger::SpeedIncrease   ? "every speed increase"
+                                : t == TransientTrigger::StartOrChange ? "every start or speed change"
+                                                                       : "every start from standstill",
+                                p.spec.tau_s / 60);
         out.push_back(std::move(q));
       }
   }

@@ -47,8 +47,12 @@ RefitSelection select_refits(const std::vector<Proposal>& proposals, int max_can
 // For every distinct node set of the transient proposals in `refitted`, the (trigger, coupling)
 // variants not among them, as proposals at those nodes with the same time constant and base
 // shift; the amplitude start is converted between the triggers' units at the reference speed
-// (one start from standstill to `speed_ref_rpm` = speed_ref_rpm / 1000 units of increase).
-std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refitted, double speed_ref_rpm);
+// (one start from standstill to `speed_ref_rpm` = speed_ref_rpm / 1000 units of increase). The
+// starts-only trigger is among them only with `with_starts_only` (fit recordings that change speed
+// while turning: elsewhere it restarts at the same rows as StartOrChange, and the loop takes its
+// twin instead of a refit, residual_loop.cpp).
+std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refitted, double speed_ref_rpm,
+                                               bool with_starts_only = false);
 
 // True when two proposals name the same explanation: family, nodes (in any order) and column.
 bool same_explanation(const EffectSpec& a, const EffectSpec& b);

@@ -387,7 +387,7 @@ class ResidualLoop {
     std::vector<Proposal> todo;
     for (std::size_t i : sel.refit) todo.push_back(proposals[i]);
     add_transient_variants(todo);
-    for (CandidateResult& c : refit_in_parallel(todo)) L_.candidates.push_back(std::move(c));
+    add_with_twins(refit_in_parallel(todo));
     for (std::size_t i = 0; i < proposals.size(); ++i) {
       if (sel.reason[i].empty()) continue;
       CandidateResult c = candidate_of(proposals[i], base_);
@@ -430,11 +430,37 @@ class ResidualLoop {
 
   // A transient refitted at some nodes is refitted there in every (trigger, coupling) variant
   // (refit_selection.hpp, rule 3).
+  // The starts-only trigger is refitted only where the fit recordings tell it from the
+  // start-or-change one; elsewhere it is the twin add_with_twins() makes.
   void add_transient_variants(std::vector<Proposal>& todo) const {
-    for (Proposal& q : other_transient_variants(todo, base_.speed_ref_rpm)) {
+    for (Proposal& q : other_transient_variants(todo, base_.speed_ref_rpm, !starts_only_restarts_alike(base_, fit_))) {
       say(fmt::format("residual: also refitting {} as '{}'", effect_label(q.spec, base_), q.variant));
       todo.push_back(std::move(q));
     }
+  }
+
+  // Appends refits to the candidates, each fitted start-or-change transient followed by its
+  // starts-only twin when no fit recording changes speed while turning (candidate_fit.hpp): the
+  // issue's run-in ("all friction heat higher after each start") and the one restarted by every
+  // speed change fit warm-ups alike, and only the check run's speed steps tell them apart.
+  void add_with_twins(std::vector<CandidateResult> refits) {
+    const bool alike = starts_only_restarts_alike(base_, fit_);
+    for (CandidateResult& c : refits) {
+      const bool twin = alike && c.spec.kind == EffectKind::HeatSourceTransient && c.spec.trigger == TransientTrigger::StartOrChange &&
+                        c.status != "failed";
+      L_.candidates.push_back(std::move(c));
+      if (!twin) continue;
+      CandidateResult t = starts_only_twin(ctx_, L_.candidates.back());
+      say(fmt::format("residual: {} also as '{}': check {:.4g} K (restarted by speed changes too: {:.4g} K)", t.label, t.variant,
+                      t.check.rmse_k, L_.candidates.back().check.rmse_k));
+      L_.candidates.push_back(std::move(t));
+    }
+  }
+
+  static bool twin_of(const CandidateResult& t, const std::string& label, const Proposal& p) {
+    return t.label == label && p.spec.kind == EffectKind::HeatSourceTransient && p.spec.trigger == TransientTrigger::StartOrChange &&
+           t.spec.trigger == TransientTrigger::Start && t.spec.multiplicative == p.spec.multiplicative &&
+           t.variant.find("the same fit as the start-or-change variant") != std::string::npos;
   }
 
   // The proposals refitted side by side (each from ctx_ alone: the results are those of a
@@ -543,9 +569,12 @@ class ResidualLoop {
         done = (c.status == "fitted" && !stuck) || c.status == "refused";
         if (c.status == "not fitted" || stuck) c.status = "superseded";  // refitted below
       }
-      if (!done) todo.push_back(p);
+      if (done) continue;
+      todo.push_back(p);
+      for (auto& c : L_.candidates)
+        if (twin_of(c, label, p)) c.status = "superseded";  // made again with its refit
     }
-    for (CandidateResult& c : refit_in_parallel(todo, "the re-polished base")) L_.candidates.push_back(std::move(c));
+    add_with_twins(refit_in_parallel(todo, "the re-polished base"));
     L_.candidates.erase(std::remove_if(L_.candidates.begin(), L_.candidates.end(),
                                        [](const CandidateResult& c) { return c.status == "superseded"; }),
                         L_.candidates.end());
@@ -1122,7 +1151,7 @@ class ResidualLoop {
 
 Evaluation evaluate_candidate(const CandidateResult& c, const th::Recording& rec) {
   Eigen::MatrixXd ex;
-  if (c.transient_node >= 0) ex = transient_impulses_w(c.net, rec, c.transient_node, c.trigger);
+  if (c.transient_node >= 0) ex = transient_impulses_w(c.net, c.values, rec, c.transient_node, c.trigger);
   return evaluate_model(c.net, c.values, rec, c.transient_node >= 0 ? &ex : nullptr, nullptr, c.rest_nodes);
 }
 

@@ -243,7 +243,7 @@ void regressor_series(const th::Network& net, const Eigen::VectorXd& p, const Di
     const auto key = std::make_pair(static_cast<int>(trig), tau);
     auto it = decays.find(key);
     if (it != decays.end()) return it->second;
-    const std::vector<double> u = transient_triggers(net, rec, trig);
+    const std::vector<double> u = transient_triggers(net, rec, trig, tau);  // StartOrChange restarts at one unit
     std::vector<double> z(rec.rows(), 0.0);
     for (std::size_t k = 0; k < rec.rows(); ++k) z[k] = (k ? z[k - 1] * std::exp(-(rec.time_s[k] - rec.time_s[k - 1]) / tau) : 0.0) + u[k];
     return decays.emplace(key, std::move(z)).first->second;

@@ -38,12 +38,13 @@ EffectDynamics::EffectDynamics(const HiddenEffects& fx, const thermal::Network& 
   // The demo's two historic specs, expressed in the general families.
   if (fx.bearing_temp_coeff_per_k != 0.0) scaled_.push_back({probes.rear_bearing, fx.bearing_temp_coeff_per_k});
   if (fx.runin_w_per_krpm != 0.0)
-    transients_.push_back({{probes.rear_bearing, probes.front_bearing}, false, fx.runin_w_per_krpm, fx.runin_tau_s, 0.0});
+    transients_.push_back({{probes.rear_bearing, probes.front_bearing}, false, false, fx.runin_w_per_krpm, fx.runin_tau_s, 0.0});
   for (const auto& t : fx.transients) {
     Transient r;
-    const std::string what = std::string("effect ") + (t.multiplicative ? "transient-gain" : "transient");
+    const std::string what = std::string("effect ") + (t.multiplicative ? "transient-gain" : "transient") + (t.starts_only ? "-start" : "");
     for (const auto& n : t.nodes) r.nodes.push_back(t.multiplicative ? source_node(n, what) : resolve(net, n, what));
     r.multiplicative = t.multiplicative;
+    r.starts_only = t.starts_only;
     r.amplitude = t.amplitude;
     r.tau_s = t.tau_s;
     transients_.push_back(r);
@@ -81,9 +82,12 @@ void EffectDynamics::add_heat(double t_s, double rpm, const Eigen::VectorXd& sou
   const bool running = rpm > 0.0;
   const double w = rpm / w0_rpm_;
   // Run-in transients: an additive one accumulates every speed increase (a start included); a
-  // multiplicative one re-arms at every start or speed change. Friction heat needs rotation.
+  // multiplicative one re-arms at every start or speed change; a starts-only one (either kind)
+  // re-arms at a start from standstill only. Friction heat needs rotation.
   for (auto& tr : transients_) {
-    if (tr.multiplicative) {
+    if (tr.starts_only) {
+      if (running && !(last_rpm_ > 0.0)) tr.state = 1.0;
+    } else if (tr.multiplicative) {
       if (rpm != last_rpm_ && running) tr.state = 1.0;
     } else if (rpm > last_rpm_) {
       tr.state += (rpm - last_rpm_) / 1000.0;

@@ -55,8 +55,9 @@ class EffectDynamics {
   struct Transient {
     std::vector<int> nodes;
     bool multiplicative = false;
+    bool starts_only = false;  // restarted (state = 1) by a start from standstill only
     double amplitude = 0, tau_s = 1;
-    double state = 0;  // additive: accumulated 1000-rpm increments; multiplicative: 0..1
+    double state = 0;  // additive: accumulated 1000-rpm increments; multiplicative or starts_only: 0..1
   };
   struct Scaled { int node; double coeff_per_k; };
   struct Coupled { int node, hot, cold; double g, e; };

@@ -146,17 +146,19 @@ void parse_effect(const std::string& spec, HiddenEffects& fx) {
     fx.runin_tau_s = duration(arg.substr(slash + 1), "time constant", fail);
     if (fx.runin_w_per_krpm < 0.0 || fx.runin_w_per_krpm > 100.0 || fx.runin_tau_s <= 0.0)
       fail("need 0..100 W per 1000 rpm and TAU > 0");
-  } else if (kind == "transient" || kind == "transient-gain") {
+  } else if (kind == "transient" || kind == "transient-gain" || kind == "transient-start" || kind == "transient-gain-start") {
     need_target();
     HeatTransient t;
-    t.multiplicative = kind == "transient-gain";
+    t.multiplicative = kind == "transient-gain" || kind == "transient-gain-start";
+    t.starts_only = kind == "transient-start" || kind == "transient-gain-start";
     const auto [amp, tau] = pair_of(values, kind + ":" + (t.multiplicative ? "A/TAU" : "W/TAU") + "@NODES", fail);
     if (t.multiplicative) {
       t.amplitude = number(amp, {"%"}, "gain (fraction)", fail);
       check_range(t.amplitude, -0.9, 5.0, "gain", fail);
     } else {
-      t.amplitude = number(amp, {"W", "w"}, "heat (W per 1000 rpm)", fail);
-      check_range(t.amplitude, 0.0, 100.0, "heat (W per 1000 rpm)", fail);
+      const char* what = t.starts_only ? "heat (W per start)" : "heat (W per 1000 rpm)";
+      t.amplitude = number(amp, {"W", "w"}, what, fail);
+      check_range(t.amplitude, 0.0, 100.0, what, fail);
     }
     t.tau_s = duration(tau, "time constant", fail);
     if (!(t.tau_s > 0.0)) fail("time constant must be > 0");
@@ -264,7 +266,7 @@ void parse_effect(const std::string& spec, HiddenEffects& fx) {
     fx.latent.push_back(m);
   } else {
     fail("unknown kind '" + kind +
-         "' (bearing-tc, run-in, transient, transient-gain, temp-heat, coupled-heat, speed-heat, sensor-lag, "
+         "' (bearing-tc, run-in, transient, transient-gain, transient-start, transient-gain-start, temp-heat, coupled-heat, speed-heat, sensor-lag, "
          "sensor-drift, ambient-lag, coolant, event, latent)");
   }
   fx.specs.push_back(spec);

@@ -16,6 +16,10 @@
 //   transient-gain:A/TAU@NODES   run-in transient, multiplicative: the friction source at each node
 //                                (a node with a heat source) is x (1 + A e^-(t - t_c)/TAU) after the
 //                                last start or speed change t_c; A is a fraction (0.3 or 30%)
+//   transient-start:W/TAU@NODES  run-in after each start from standstill only, additive: W watts at
+//                                each node x e^-(t - t_s)/TAU after the last start t_s (W per start,
+//                                not per 1000 rpm; a speed change while turning does not restart it)
+//   transient-gain-start:A/TAU@NODES  the same as transient-gain, restarted by starts only
 //   temp-heat:K@NODES            temperature-dependent friction: the source at each node
 //                                x (1 + K theta_node), theta = node - ambient, K in 1/K (negative =
 //                                heat falls as the lubricant thins); the factor never goes below 0
@@ -52,7 +56,8 @@ namespace btsm::sim {
 struct HeatTransient {
   std::vector<std::string> nodes;
   bool multiplicative = false;  // false: additive heat; true: scales the node's friction source
-  double amplitude = 0.0;       // additive: W per 1000 rpm of increase; multiplicative: 1 (fraction)
+  double amplitude = 0.0;       // additive: W per 1000 rpm of increase (W per start with starts_only); multiplicative: 1 (fraction)
+  bool starts_only = false;     // restarted by starts from standstill only, not by speed changes
   double tau_s = 1800.0;        // s, decay time constant
 };
 

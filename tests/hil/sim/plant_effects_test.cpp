@@ -135,6 +135,22 @@ TEST(HiddenEffects, MultiplicativeTransientReArmsAtEveryStartOrSpeedChange) {
   EXPECT_EQ(p.extra_heat_w()[kFront], 0.0);
 }
 
+// The run-in, "all friction heat higher after each start": a speed change while turning
+// does not restart it, a start from standstill does (either kind).
+TEST(HiddenEffects, StartsOnlyTransientsReArmAtAStartAndNotAtASpeedChange) {
+  SpindlePlant p(with("1h@6000,1h@4000,1h@0,1h@4000", {"transient-gain-start:0.4/20m@rear_bearing", "transient-start:3W/20m@housing"}));
+  const double q6 = sources_at(p, 6000)[kRear], q4 = sources_at(p, 4000)[kRear];
+  p.advance_to(1);
+  EXPECT_NEAR(p.extra_heat_w()[kRear], 0.4 * q6, 0.05);
+  EXPECT_NEAR(p.extra_heat_w()[kHousing], 3.0, 0.01);  // W per start, not per 1000 rpm
+  p.advance_to(3600 + 1);  // the step down keeps decaying from the start
+  EXPECT_NEAR(p.extra_heat_w()[kRear], 0.4 * q4 * std::exp(-3.0), 0.01);
+  EXPECT_NEAR(p.extra_heat_w()[kHousing], 3.0 * std::exp(-3.0), 0.01);
+  p.advance_to(3 * 3600 + 1);  // started again
+  EXPECT_NEAR(p.extra_heat_w()[kRear], 0.4 * q4, 0.05);
+  EXPECT_NEAR(p.extra_heat_w()[kHousing], 3.0, 0.01);
+}
+
 TEST(HiddenEffects, TemperatureDependentHeatFollowsTheRiseOfItsNode) {
   SpindlePlant falling(with("3h@6000", {"temp-heat:-0.02@front_bearing"}));
   SpindlePlant base(with("3h@6000", {}));

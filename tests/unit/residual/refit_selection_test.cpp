@@ -98,6 +98,18 @@ TEST(RefitSelection, EveryTriggerAndCouplingOfARefittedTransientIsRefittedAtItsN
   EXPECT_TRUE(rear_additive_increase);
   // nothing to add when no transient is refitted
   EXPECT_TRUE(other_transient_variants({ps[0], ps[2]}, 5000.0).empty());
+  // fit recordings that change speed while turning: the starts-only trigger is refitted too, in
+  // both couplings at each node set, its amplitude in W per start like a start-or-change one
+  const std::vector<Proposal> with_starts = other_transient_variants(refitted, 5000.0, true);
+  ASSERT_EQ(with_starts.size(), 10u);
+  int starts_only = 0;
+  for (const Proposal& q : with_starts)
+    if (q.spec.trigger == TransientTrigger::Start) {
+      ++starts_only;
+      EXPECT_NE(q.variant.find("every start from standstill"), std::string::npos) << q.variant;
+      if (q.spec.nodes.size() == 1) EXPECT_EQ(q.coefficients, (std::vector<double>{10.0})) << q.variant;
+    }
+  EXPECT_EQ(starts_only, 4);
 }
 
 TEST(RefitSelection, FourDistinctBestProposalsAreExactlyWhatIsRefitted) {

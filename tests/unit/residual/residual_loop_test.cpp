@@ -115,6 +115,17 @@ std::vector<FamilyCase> family_cases() {
     v.push_back(family("transient_additive", s, {{"tau_transient", 1200}, {"a_transient_rear_bearing", 4}, {"a_transient_front_bearing", 4}},
                        {"rear_bearing", "front_bearing"}, "tau_transient", 1200));
   }
+  {
+    // the run-in, "all friction heat higher after each start": restarted by starts only.
+    // The warm-ups fit it exactly as one restarted by every speed change; the check run's steps
+    // tell them apart (the loop's starts-only twin, residual_loop.cpp add_with_twins)
+    EffectSpec s = spec(EffectKind::HeatSourceTransient, {"rear_bearing", "front_bearing"});
+    s.trigger = TransientTrigger::Start;
+    s.multiplicative = true;
+    v.push_back(family("transient_gain_starts_only", s,
+                       {{"tau_transient", 1800}, {"a_transient_rear_bearing", 0.3}, {"a_transient_front_bearing", 0.3}},
+                       {"rear_bearing", "front_bearing"}, "tau_transient", 1800));
+  }
   v.push_back(family("temperature_dependent_rising", spec(EffectKind::TemperatureDependentHeat, {"rear_bearing"}),
                      {{"k_heat_T_rear_bearing", 0.6}}, {"rear_bearing"}, "heat_per_K_rear_bearing", 0.6));
   {
@@ -191,7 +202,7 @@ TEST(TransientEffect, TheVirtualStateDeliversThePlantsRunInHeatWithoutALeak) {
   }
   for (const auto& m : base.measurements) rec.channels.push_back(m.column);
   rec.temp_c = Eigen::MatrixXd::Zero(static_cast<Eigen::Index>(rec.rows()), static_cast<Eigen::Index>(rec.channels.size()));
-  const Eigen::MatrixXd impulses = transient_impulses_w(am.net, rec, am.transient_node, am.trigger);
+  const Eigen::MatrixXd impulses = transient_impulses_w(am.net, am.params, rec, am.transient_node, am.trigger);
   const Eigen::MatrixXd with_state =
       th::simulate_recording(am.net, am.params, rec, Eigen::VectorXd::Constant(am.net.node_count(), 21.0), &impulses);
   // the plant's heat, a (rpm / 1000) e^(-t/tau) while running, averaged over each row (the
@@ -207,6 +218,42 @@ TEST(TransientEffect, TheVirtualStateDeliversThePlantsRunInHeatWithoutALeak) {
     for (int n = 0; n < base.node_count(); ++n) worst = std::max(worst, std::abs(with_state(k, n) - plant(k, n)));
   std::printf("library transient vs the plant's: largest node difference %.5f K\n", worst);
   EXPECT_LT(worst, 0.005) << "largest node temperature difference [K] between the library's transient and the plant's";
+}
+
+// The triggers' units: an increase adds its 1000-rpm units, a restart tops the state up to one
+// unit (what the decay took since the last), a starts-only transient ignores a speed change while
+// turning. Warm-ups restart both restarting kinds alike; a speed step while turning does not.
+TEST(TransientEffect, TriggersRestartOrPileUpAsTheirKindSays) {
+  const th::Network base = th::preset_network("spindle4");
+  th::Recording rec;
+  rec.source = "steps.csv";
+  // standstill, 4000 rpm at 100 s, 6000 rpm at 1900 s, stop at 3700 s, 4000 rpm again at 5500 s
+  for (int k = 0; k <= 70; ++k) {
+    const double t = 100.0 * k;
+    rec.time_s.push_back(t);
+    rec.speed_rpm.push_back(t < 100 ? 0.0 : t < 1900 ? 4000.0 : t < 3700 ? 6000.0 : t < 5500 ? 0.0 : 4000.0);
+    rec.ambient_c.push_back(21.0);
+  }
+  const std::vector<double> inc = transient_triggers(base, rec, TransientTrigger::SpeedIncrease);
+  EXPECT_DOUBLE_EQ(inc[1], 4.0);
+  EXPECT_DOUBLE_EQ(inc[19], 2.0);
+  EXPECT_DOUBLE_EQ(inc[55], 4.0);
+  const double tau = 1800.0;
+  const std::vector<double> change = transient_triggers(base, rec, TransientTrigger::StartOrChange, tau);
+  EXPECT_DOUBLE_EQ(change[1], 1.0);
+  EXPECT_NEAR(change[19], 1.0 - std::exp(-1800.0 / tau), 1e-12);  // topped up, not a second unit
+  EXPECT_NEAR(change[55], 1.0 - std::exp(-3600.0 / tau), 1e-12);
+  const std::vector<double> start = transient_triggers(base, rec, TransientTrigger::Start, tau);
+  EXPECT_DOUBLE_EQ(start[1], 1.0);
+  EXPECT_DOUBLE_EQ(start[19], 0.0);  // a speed change while turning
+  EXPECT_NEAR(start[55], 1.0 - std::exp(-5400.0 / tau), 1e-12);
+  EXPECT_FALSE(starts_only_restarts_alike(base, {rec}));
+  th::Recording warm = rec;
+  for (auto& w : warm.speed_rpm) w = w > 0 ? 5000.0 : 0.0;
+  warm.speed_rpm.resize(37);
+  warm.time_s.resize(37);
+  warm.ambient_c.resize(37);
+  EXPECT_TRUE(starts_only_restarts_alike(base, {warm}));
 }
 
 TEST(ResidualLoopDecision, CleanDataGiveNone) {

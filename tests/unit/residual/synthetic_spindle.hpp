@@ -86,7 +86,7 @@ inline thermal::Recording simulate(const Programme& prog, const AugmentedModel& 
   thermal::declare_columns(rec, boundaries, events);
   if (t.module_recording) rec.meta.emplace_back("module_id", "0000de70");
   Eigen::MatrixXd extra;
-  if (truth.transient_node >= 0) extra = transient_impulses_w(truth.net, rec, truth.transient_node, truth.trigger);
+  if (truth.transient_node >= 0) extra = transient_impulses_w(truth.net, truth.params, rec, truth.transient_node, truth.trigger);
   const Eigen::VectorXd x0 = Eigen::VectorXd::Constant(truth.net.node_count(), rec.ambient_c[0]);
   const Eigen::MatrixXd nodes = thermal::simulate_recording(truth.net, truth.params, rec, x0, truth.transient_node >= 0 ? &extra : nullptr);
   std::mt19937 rng(seed);
