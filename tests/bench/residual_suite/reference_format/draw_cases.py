@@ -2,7 +2,10 @@
 """Draws unseen-effect cases for the reference-format check: per round one case of each family the
 simulated plant can hide without a declared column (random strength, nodes and time constant in the
 effect suite's ranges, host/sim/suite/cases.cpp), plus a clean case. Prints ID|FAMILY|EFFECT lines.
-Usage: draw_cases.py SEED [ROUNDS]   (python3 standard library only)"""
+With KIND "run-ins": per round one run-in transient of each trigger instead (additive per speed
+increase, x friction restarted by every start or change, additive and x friction restarted by
+starts from standstill only).
+Usage: draw_cases.py SEED [ROUNDS [KIND]]   (python3 standard library only)"""
 import random
 import sys
 
@@ -16,6 +19,13 @@ def bearings():
 
 
 cases = []
+if len(sys.argv) > 3 and sys.argv[3] == "run-ins":
+    for _ in range(rounds):
+        n = bearings(); cases.append(("heat_source_transient/add", f"transient:{rng.uniform(2,6):.1f}W/{rng.randint(10,40)}m@{'+'.join(n)}"))
+        n = bearings(); cases.append(("heat_source_transient/mult", f"transient-gain:{rng.uniform(0.2,0.6):.2f}/{rng.randint(10,40)}m@{'+'.join(n)}"))
+        n = bearings(); cases.append(("heat_source_transient/add-start", f"transient-start:{rng.uniform(5,20):.1f}W/{rng.randint(10,40)}m@{'+'.join(n)}"))
+        n = bearings(); cases.append(("heat_source_transient/mult-start", f"transient-gain-start:{rng.uniform(0.2,0.6):.2f}/{rng.randint(10,40)}m@{'+'.join(n)}"))
+    rounds = 0
 for _ in range(rounds):
     n = bearings(); cases.append(("heat_source_transient/add", f"transient:{rng.uniform(2,6):.1f}W/{rng.randint(10,40)}m@{'+'.join(n)}"))
     n = bearings(); cases.append(("heat_source_transient/mult", f"transient-gain:{rng.uniform(0.2,0.6):.2f}/{rng.randint(10,40)}m@{'+'.join(n)}"))
