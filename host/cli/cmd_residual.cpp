@@ -79,6 +79,12 @@ void run_residual(ResidualArgs& a) {
         if (th::same_samples(f, c))
           throw CommandError(kExitUsage, c.source + ": the check recording holds the same samples as the fit recording " + f.source +
                                              "; the check must be held out from the fit, or its error says nothing of an effect");
+        else if (const std::string how = th::repeated_samples(f, c); !how.empty())
+          throw CommandError(kExitUsage, c.source + ": the check recording repeats the samples of the fit recording " + f.source + " (" +
+                                             how + "); the check must be held out from the fit, or its error says nothing of an effect");
+        else if (const std::string held = th::repeated_samples(c, f); !held.empty())
+          throw CommandError(kExitUsage, c.source + ": the check recording holds the samples of the fit recording " + f.source + " (" +
+                                             held + "); the check must be held out from the fit, or its error says nothing of an effect");
     th::refuse_repeated_recordings(all);
   } catch (const std::invalid_argument& e) {
     throw CommandError(kExitUsage, e.what());

@@ -6,6 +6,7 @@
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
 
+#include <cstdio>
 #include <algorithm>
 #include <charconv>
 #include <cerrno>
@@ -243,13 +244,69 @@ bool same_samples(const Recording& a, const Recording& b) {
   return true;
 }
 
+std::string repeated_samples(const Recording& a, const Recording& b) {
+  constexpr double kTolK = 5e-4;      // below every sensor's resolution here (the AD7794 chain: ~1 mK)
+  // of b's rows: a synthetic run whose temperatures ignore the speed shares 90 % of its rows with
+  // another cut of itself; a copy shares them all
+  constexpr double kShare = 0.98;
+  constexpr int kMaxAnchors = 20;     // rows of `a` tried as b's first row
+  if (b.rows() < 10 || a.rows() < 2) return "";
+  std::vector<std::pair<Eigen::Index, Eigen::Index>> cols;  // (a's, b's) shared temperature columns
+  for (std::size_t c = 0; c < b.channels.size(); ++c)
+    for (std::size_t d = 0; d < a.channels.size(); ++d)
+      if (a.channels[d] == b.channels[c]) cols.emplace_back(static_cast<Eigen::Index>(d), static_cast<Eigen::Index>(c));
+  if (cols.empty()) return "";
+  const auto same_row = [&](std::size_t i, std::size_t k) {
+    if (a.speed_rpm[i] != b.speed_rpm[k]) return false;
+    for (const auto& [ca, cb] : cols) {
+      const double x = a.temp_c(static_cast<Eigen::Index>(i), ca), y = b.temp_c(static_cast<Eigen::Index>(k), cb);
+      if (!(std::abs(x - y) <= kTolK || (std::isnan(x) && std::isnan(y)))) return false;
+    }
+    return true;
+  };
+  int anchors = 0;
+  for (std::size_t j = 0; j < a.rows() && anchors < kMaxAnchors; ++j) {
+    if (!same_row(j, 0)) continue;
+    ++anchors;
+    const double offset = a.time_s[j] - b.time_s[0];
+    std::size_t matched = 0, i = j;
+    for (std::size_t k = 0; k < b.rows(); ++k) {
+      const double t = b.time_s[k] + offset, tol = 1e-9 * std::max(1.0, std::abs(t)) + 1e-6;
+      while (i + 1 < a.rows() && a.time_s[i] < t - tol) ++i;  // both sorted by time
+      if (std::abs(a.time_s[i] - t) <= tol && same_row(i, k)) ++matched;
+    }
+    if (static_cast<double>(matched) < kShare * static_cast<double>(b.rows())) continue;
+    std::string how;
+    char text[160];
+    if (offset != 0.0) {
+      std::snprintf(text, sizeof text, "times shifted by %.10g s", -offset);
+      how = text;
+    }
+    const double per = static_cast<double>(a.rows()) / static_cast<double>(b.rows());
+    if (per >= 1.5) {
+      std::snprintf(text, sizeof text, "%s1 of every %.0f rows", how.empty() ? "" : ", ", per);
+      how += text;
+    }
+    std::snprintf(text, sizeof text, "%s%zu of its %zu rows equal to within %.1f mK", how.empty() ? "" : ", ", matched, b.rows(),
+                  kTolK * 1e3);
+    return how + text;
+  }
+  return "";
+}
+
 void refuse_repeated_recordings(const std::vector<Recording>& recs) {
   for (std::size_t i = 0; i < recs.size(); ++i)
-    for (std::size_t j = i + 1; j < recs.size(); ++j)
+    for (std::size_t j = i + 1; j < recs.size(); ++j) {
       if (same_samples(recs[i], recs[j]))
         throw std::invalid_argument(recs[j].source + ": holds the same samples as " + recs[i].source +
                                     "; a recording given twice counts twice (its weight doubled, the parameter "
                                     "uncertainties understated): give each recording once");
+      for (const auto& [x, y] : {std::pair<std::size_t, std::size_t>{i, j}, {j, i}})
+        if (const std::string how = repeated_samples(recs[x], recs[y]); !how.empty())
+          throw std::invalid_argument(recs[y].source + ": repeats the samples of " + recs[x].source + " (" + how +
+                                      "); a recording given twice counts twice (its weight doubled, the parameter "
+                                      "uncertainties understated): give each recording once");
+    }
 }
 
 void write_recording_csv(const std::string& path, const Recording& rec, int temp_decimals) {

@@ -65,9 +65,14 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
 // True when both hold the same samples (time, speed, ambient, columns and every temperature, an
 // empty cell equal to an empty cell), whatever their file names and metadata.
 bool same_samples(const Recording& a, const Recording& b);
-// Throws std::invalid_argument naming both files when two of `recs` hold the same samples: a
-// recording given twice is fitted with double weight, which halves no error but does halve the
-// parameter uncertainties the fit reports.
+// When (98 % or more of) the rows of `b` repeat a row of `a` at the same place in time, `a`'s times moved
+// by one offset: the same speed, and every temperature column they share within 0.5 mK (a copy
+// with shifted times, every n-th row, or a nudge below any sensor's resolution). Says how
+// ("times shifted by 999980000 s, 1 of every 2 rows"); "" otherwise, or when `b` has under 10 rows.
+std::string repeated_samples(const Recording& a, const Recording& b);
+// Throws std::invalid_argument naming both files when two of `recs` hold the same samples, or one
+// repeats the other's (repeated_samples): a recording given twice is fitted with double weight,
+// which halves no error but does halve the parameter uncertainties the fit reports.
 void refuse_repeated_recordings(const std::vector<Recording>& recs);
 
 // Writes metadata, header and rows (temperatures with 4 decimals, NaN as an empty cell).

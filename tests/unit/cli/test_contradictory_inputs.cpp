@@ -121,6 +121,33 @@ TEST(Repeats, TheSameRecordingTwiceIsRefused) {
   EXPECT_TRUE(mentions(r, "copy.csv") && mentions(r, "held out")) << r.err;
 }
 
+// Probe 5 (P2-11): a copy with its times shifted, every 2nd row of it, or its T1 nudged by 0.1 mK
+// passed as another recording: the "held-out" check was the fit recording, and fit counted it twice.
+TEST(Repeats, AShiftedThinnedOrNudgedCopyIsRefused) {
+  ScratchDir d;
+  write_text(d.file("a.csv"), recording_csv(200));
+  write_text(d.file("shifted.csv"), recording_csv(200, [](int, int col, const std::string& text) {
+               return col == 0 ? std::to_string(std::stoll(text) + 999980000LL) : text;
+             }));
+  std::string thinned;
+  int line = 0;
+  for (std::size_t at = 0, end; (end = recording_csv(200).find('\n', at)) != std::string::npos; at = end + 1, ++line)
+    if (line < 2 || line % 2 == 0) thinned += recording_csv(200).substr(at, end - at + 1);
+  write_text(d.file("thinned.csv"), thinned);
+  write_text(d.file("nudged.csv"), recording_csv(200, [](int, int col, const std::string& text) {
+               char buf[32];
+               std::snprintf(buf, sizeof buf, "%.4f", std::stod(text) + 1e-4);
+               return col == 3 ? std::string(buf) : text;
+             }));
+  expect_refusals(d, {{"residual --preset spindle4 --fit a.csv --check shifted.csv",
+                       "the check recording repeats the samples of the fit recording a.csv (times shifted by 999980000 s"},
+                      {"residual --preset spindle4 --fit a.csv --check thinned.csv", "1 of every 2 rows"},
+                      {"residual --preset spindle4 --fit a.csv --check nudged.csv", "200 of its 200 rows equal to within 0.5 mK"},
+                      {"residual --preset spindle4 --fit thinned.csv --check a.csv", "the check recording holds the samples of the fit"},
+                      {"fit a.csv shifted.csv --preset spindle4 --out m.json", "shifted.csv: repeats the samples of a.csv"}});
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+}
+
 // A network measuring one column at two nodes was accepted (the validate table showed T1 twice);
 // a node named with an ESC and a newline was printed raw into the terminal.
 TEST(Networks, OneColumnForTwoNodesAndControlCharactersInNamesAreRefused) {

@@ -107,6 +107,32 @@ TEST(RecordingCsv, AConstantReferenceHasNoNmse) {
   EXPECT_NEAR(error_metrics(ramp, ramp).nmse, 1.0, 1e-12);
 }
 
+// repeated_samples: a copy shifted in time or thinned repeats; the same temperatures at another
+// speed, another run with its own noise, or the same run's other half alone do not cover the rows.
+TEST(RecordingCsv, RepeatedSamplesAreThoseOfACopyNotOfAnotherRun) {
+  const auto run = [](int rows, double t0, int every, double rpm, double noise_k, int skip) {
+    std::string s = "time_s,speed_rpm,ambient_c,T1,T2\n";
+    unsigned state = 7;
+    for (int k = skip; k < rows; k += every) {
+      state = state * 1103515245u + 12345u;
+      const double n = noise_k * (static_cast<int>((state >> 8) % 2001u) - 1000) / 1000.0;
+      char line[128];
+      std::snprintf(line, sizeof line, "%.10g,%g,20,%.4f,%.4f\n", t0 + 10.0 * k, k < rows / 2 ? rpm : 0.0,
+                    20 + 8 * (1 - std::exp(-10.0 * k / 3000)) + n, 20 + 5 * (1 - std::exp(-10.0 * k / 3000)));
+      s += line;
+    }
+    return parse_recording_csv(s, "r.csv");
+  };
+  const Recording a = run(400, 0, 1, 6000, 0, 0);
+  EXPECT_NE(repeated_samples(a, run(400, 5e8, 1, 6000, 0, 0)).find("times shifted by 500000000 s"), std::string::npos);
+  EXPECT_NE(repeated_samples(a, run(400, 0, 3, 6000, 0, 0)).find("1 of every 3 rows"), std::string::npos);
+  EXPECT_EQ(repeated_samples(a, run(400, 0, 1, 5000, 0, 0)), "");     // another speed
+  EXPECT_EQ(repeated_samples(a, run(400, 0, 1, 6000, 0.005, 0)), "");  // another run: 5 mK noise on T1
+  EXPECT_NE(repeated_samples(a, run(400, 0, 1, 6000, 0, 200)), "");    // its cooling half: a's rows
+  EXPECT_EQ(repeated_samples(run(400, 0, 1, 6000, 0, 200), a), "");    // half of a's rows are not a's copy
+  EXPECT_THROW(refuse_repeated_recordings({a, run(400, 5e8, 2, 6000, 0, 0)}), std::invalid_argument);
+}
+
 TEST(RecordingCsv, WriterRoundTrip) {
   const std::string path = ::testing::TempDir() + "/btsm_rec_roundtrip.csv";
   {
