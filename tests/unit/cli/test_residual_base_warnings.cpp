@@ -8,6 +8,7 @@
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
+#include <algorithm>
 #include <string>
 
 namespace btsm::test {
@@ -16,13 +17,32 @@ namespace {
 TEST(ResidualBaseFitWarnings, AreOnStderrAndInTheJsonNextToEveryFormerKey) {
   ScratchDir d;
   const std::string data = std::string(BTSM_TEST_DATA_DIR) + "/drift-cooling/";
-  // The check: the first hours of the 8002 rpm run (residual refuses a check that is a fit
-  // recording itself; the warnings come from the base fit, whatever the check).
+  // The check: the first hours of the 8002 rpm run read 20 mK warmer (residual refuses a check
+  // that is a fit recording, or repeats its samples; the warnings come from the base fit,
+  // whatever the check).
   const std::string run = read_text(data + "warmup_8002rpm.csv");
-  std::size_t cut = 0;
-  for (int lines = 0; lines < 1500 && cut != std::string::npos; ++lines) cut = run.find('\n', cut + 1);
-  ASSERT_NE(cut, std::string::npos);
-  write_text(d.file("check.csv"), run.substr(0, cut + 1));
+  std::string check;
+  std::size_t at = 0;
+  for (int lines = 0; lines < 1500; ++lines) {
+    const std::size_t end = run.find('\n', at);
+    ASSERT_NE(end, std::string::npos);
+    std::string line = run.substr(at, end - at);
+    at = end + 1;
+    if (!line.empty() && line[0] >= '0' && line[0] <= '9') {  // time,speed,ambient,T1,T2,T3,T5
+      std::string out;
+      std::size_t from = 0;
+      for (int col = 0; from <= line.size(); ++col) {
+        const std::size_t comma = std::min(line.find(',', from), line.size());
+        std::string cell = line.substr(from, comma - from);
+        if (col >= 3 && !cell.empty()) cell = std::to_string(std::stod(cell) + 0.02);
+        out += (col ? "," : "") + cell;
+        from = comma + 1;
+      }
+      line = out;
+    }
+    check += line + "\n";
+  }
+  write_text(d.file("check.csv"), check);
   const CliResult r = run_btsm(d,
                                "residual --preset spindle4 --fit " + data + "warmup_4038rpm.csv --fit " + data +
                                    "warmup_8002rpm.csv --check check.csv --effects sensor_drift --max-candidates 1 --json",
