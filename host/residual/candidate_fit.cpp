@@ -294,7 +294,7 @@ CandidateResult starts_only_twin(const CandidateContext& ctx, const CandidateRes
   const auto swap_words = [](std::string& text) {
     for (const auto& [from, to] : {std::pair<std::string, std::string>{trigger_name(TransientTrigger::StartOrChange),
                                                                         trigger_name(TransientTrigger::Start)},
-                                   {"every start or speed change", "every start from standstill"},
+                                   {trigger_phrase(TransientTrigger::StartOrChange), trigger_phrase(TransientTrigger::Start)},
                                    {"each start or speed change", "each start from standstill"},
                                    {"W per start/change", "W per start"}})
       for (std::size_t at = text.find(from); at != std::string::npos; at = text.find(from, at + to.size())) text.replace(at, from.size(), to);

@@ -138,6 +138,15 @@ const char* trigger_name(TransientTrigger t) {
   return "every start from standstill (restarting; not a speed change while turning)";
 }
 
+const char* trigger_phrase(TransientTrigger t) {
+  switch (t) {
+    case TransientTrigger::SpeedIncrease: return "every speed increase";
+    case TransientTrigger::StartOrChange: return "every start or speed change";
+    case TransientTrigger::Start: break;
+  }
+  return "every start from standstill";
+}
+
 std::string effect_label(const EffectSpec& e, const th::Network& net) {
   const std::string s = effect_name(e.kind);
   switch (e.kind) {

@@ -68,6 +68,8 @@ std::vector<EffectKind> all_effect_kinds();
 // start or speed change restarts the transient; Start: only a start from standstill restarts it.
 enum class TransientTrigger { SpeedIncrease, StartOrChange, Start };
 const char* trigger_name(TransientTrigger t);
+// The trigger in a variant's words: "every speed increase", "every start or speed change", "every start from standstill".
+const char* trigger_phrase(TransientTrigger t);
 
 struct EffectSpec {
   EffectKind kind = EffectKind::ExtraHeatInput;

@@ -86,10 +86,7 @@ std::vector<Proposal> other_transient_variants(const std::vector<Proposal>& refi
         for (double& c : q.coefficients) c *= scale;
         q.variant = fmt::format("{}, {}, tau {:.0f} min (another variant of the screened transient)",
                                 mult ? "x friction law" : "additive",
-                                t == TransientTrigger::SpeedIncrease   ? "every speed increase"
-                                : t == TransientTrigger::StartOrChange ? "every start or speed change"
-                                                                       : "every start from standstill",
-                                p.spec.tau_s / 60);
+                                trigger_phrase(t), p.spec.tau_s / 60);
         out.push_back(std::move(q));
       }
   }
