@@ -2,6 +2,7 @@
 #include "cmd_link_support.hpp"
 #include "common/model_blob.hpp"
 #include "common/wire_messages.hpp"
+#include "host/io/utf8_text.hpp"
 #include "host/link/model_flash.hpp"
 #include "host/link/recorder.hpp"
 
@@ -119,7 +120,8 @@ void warn_about_active_model(Session& session) {
   } catch (const std::exception& e) {
     // firmware without MODEL_READ/GET_CONFIG, or the link failing after the acknowledged change:
     // the change stands; `info` says what it can
-    std::cerr << "set-config: could not check the active model's channel map (" << e.what() << "); `btsm info` shows it\n";
+    std::cerr << "set-config: could not check the active model's channel map (" << io::printable(e.what())
+              << "); `btsm info` shows it\n";
   }
 }
 

@@ -2,6 +2,7 @@
 #include "cmd_link_support.hpp"
 #include "host/link/device_keys.hpp"
 #include "host/io/json_input.hpp"
+#include "host/io/utf8_text.hpp"
 #include "host/link/model_blob_file.hpp"
 #include "host/link/model_flash.hpp"
 #include "host/link/recorder.hpp"
@@ -87,7 +88,8 @@ void print_valid_speed_range(const std::string& file) {
   try {
     print_speed_coverage(j["speed_coverage"]);
   } catch (const nlohmann::json::exception& e) {  // informative only: the blob itself was checked
-    std::cerr << "flash-model: WARNING: " << file << ": speed_coverage is malformed (" << e.what() << "); not shown\n";
+    std::cerr << "flash-model: WARNING: " << io::printable(file) << ": speed_coverage is malformed (" << io::printable(e.what())
+              << "); not shown\n";
   }
 }
 

@@ -1,6 +1,7 @@
 // `btsm effect-suite`: the undeclared-effect suite (host/sim/suite) -- recordings of the paper's
 // identification procedure on the simulated spindle, each with one hidden effect (or none), the
 // real `btsm residual` run on each, and the table of what it named.
+#include "host/io/utf8_text.hpp"
 #include "host/sim/suite/runner.hpp"
 #include "cli_support.hpp"
 #include "commands.hpp"
@@ -78,7 +79,7 @@ void run_effect_suite(const SuiteArgs& a) {
   for (const auto& r : rep.results)
     if (r.verdict == "error") {
       ++errors;
-      std::cerr << "effect-suite: case " << r.id << " gave no answer: " << r.error << "\n";
+      std::cerr << "effect-suite: case " << r.id << " gave no answer: " << io::printable(r.error) << "\n";
     }
   // ... unless no case gave one: then the suite measured nothing (a bad --residual-arg, a btsm
   // that does not run), and a table of errors with exit 0 would pass for a result.

@@ -4,6 +4,7 @@
 
 #include "common/model_blob.hpp"
 #include "host/io/output_file.hpp"
+#include "host/io/utf8_text.hpp"
 #include "host/thermal/column_map.hpp"
 #include "host/thermal/detector_calibration.hpp"
 #include "host/thermal/fit.hpp"
@@ -34,7 +35,7 @@ using nlohmann::json;
 std::vector<Recording> read_all(const std::vector<std::string>& files) {
   std::vector<Recording> recs;
   for (const auto& f : files) {
-    std::cerr << "reading " << f << "\n";
+    std::cerr << "reading " << io::printable(f) << "\n";  // a file name a glob brought in may hold an ESC
     try {
       recs.push_back(read_recording_csv(f));
     } catch (const std::exception& e) {
@@ -183,7 +184,7 @@ void run_validate(const ValidateArgs& a) {
     if (4 * a.initial_rows > rec.rows())
       std::cerr << fmt::format("validate: WARNING: {}: the initial state comes from {} of its {} rows: most of the score is on "
                                "rows it was fitted to\n",
-                               rec.source, a.initial_rows, rec.rows());
+                               io::printable(rec.source), a.initial_rows, rec.rows());
   if (!a.json_out) std::cout << kNmseConvention << "\n";
   std::set<std::string> plot_stems;
   for (const auto& rec : recs) {

@@ -2,9 +2,11 @@
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "host/io/input_error.hpp"
+#include "host/io/utf8_text.hpp"
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <cstdio>
 #include <exception>
 #include <iostream>
@@ -14,6 +16,13 @@ int main(int argc, char** argv) {
   app.set_version_flag("--version", std::string("btsm ") + BTSM_VERSION);
   app.require_subcommand(1);
   app.fallthrough();
+  // The parser's errors quote what was typed ("--effects: The value X is not allowed"): a value
+  // holding an ESC sequence must not reach the terminal as one. Before the registrations, which
+  // copy it into every subcommand.
+  app.failure_message([](const CLI::App* a, const CLI::Error& e) {
+    const std::string text = CLI::FailureMessage::simple(a, e), what = e.what();
+    return btsm::io::printable(what) + text.substr(std::min(what.size(), text.size()));
+  });
   btsm::cli::register_rtd_commands(app);
   btsm::cli::register_link_commands(app);
   btsm::cli::register_sysid_commands(app);
@@ -27,9 +36,12 @@ int main(int argc, char** argv) {
   const auto command = [&app] { return app.get_subcommands().empty() ? std::string() : app.get_subcommands().front()->get_name(); };
   // Library messages often start with their own stage name, which may be the command's: say it once
   // ("btsm reduce: at 4000 rpm ...", not "btsm reduce: reduce: at 4000 rpm ...").
+  // Every message is one line, and the text it quotes from files and arguments (names, cells, paths,
+  // JSON strings) is shown escaped: a CSV header with ESC [ 2 J cleared the terminal, a newline in
+  // a parameter name forged a line of output.
   const auto said = [&command](const char* what) {
     const std::string text = what, own = command() + ": ";
-    return text.compare(0, own.size(), own) == 0 ? text.substr(own.size()) : text;
+    return btsm::io::printable(text.compare(0, own.size(), own) == 0 ? text.substr(own.size()) : text);
   };
   try {
     app.parse(argc, argv);
@@ -44,11 +56,10 @@ int main(int argc, char** argv) {
     std::cerr << "btsm " << command() << ": " << said(e.what()) << "\n";
     return btsm::cli::kExitUsage;
   } catch (const nlohmann::json::exception& e) {  // a JSON input of the wrong shape no reader named
-    std::cerr << "btsm " << command() << ": a JSON input has the wrong shape: " << e.what()
-              << "\n";
+    std::cerr << "btsm " << command() << ": a JSON input has the wrong shape: " << btsm::io::printable(e.what()) << "\n";
     return btsm::cli::kExitUsage;
   } catch (const std::exception& e) {
-    std::cerr << "btsm " << command() << ": error: " << e.what() << "\n";
+    std::cerr << "btsm " << command() << ": error: " << btsm::io::printable(e.what()) << "\n";
     return btsm::cli::kExitFailure;
   }
   // Tables and --json go to stdout: a full disk or closed pipe there is a failed run, not exit 0.

@@ -5,6 +5,7 @@
 
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
+#include "host/io/utf8_text.hpp"
 
 #include <cstdio>
 #include <algorithm>
@@ -226,7 +227,7 @@ std::string long_gap_warning(const Recording& r) {
   std::snprintf(text, sizeof text,
                 "%s: a gap of %.4g h between the rows at t = %.10g s and %.10g s, %.3g times the rows' usual spacing "
                 "of %.4g s: the model runs through it with the speed (%.0f rpm) and ambient of the row before held",
-                r.source.c_str(), gap / 3600.0, r.time_s[at], r.time_s[at + 1], gap / median, median, r.speed_rpm[at]);
+                io::printable(r.source).c_str(), gap / 3600.0, r.time_s[at], r.time_s[at + 1], gap / median, median, r.speed_rpm[at]);
   return text;
 }
 

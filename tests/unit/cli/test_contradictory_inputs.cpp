@@ -5,6 +5,8 @@
 #include "refusals.hpp"
 #include "model_fixture.hpp"
 
+#include "host/io/utf8_text.hpp"
+
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
@@ -177,6 +179,57 @@ TEST(Networks, OneColumnForTwoNodesAndControlCharactersInNamesAreRefused) {
   const CliResult h = run_btsm(d, "heat spindle4 ctrl.csv");
   EXPECT_EQ(h.code, 2) << h.err;
   EXPECT_TRUE(mentions(h, "ctrl.csv:1:4") && mentions(h, "control character")) << h.err;
+}
+
+// Messages quoted what they were given raw (hostile-input probe 6): a header cell, a number cell, a
+// parameter a network refers to, a file name and the values of --nodes, --effects, --effect and
+// --channels reached the terminal with their ESC, CR and newline. Each is shown escaped now,
+// and every message stays one line.
+TEST(Networks, ControlCharactersQuotedFromAnyInputAreShownEscaped) {
+  ScratchDir d;
+  const std::string rec = recording_csv(200);
+  write_text(d.file("rec.csv"), rec);
+  write_text(d.file("model.json"), spindle4_model_json());
+  std::string first = rec;
+  first.replace(first.find("time_s,"), 6, "time\x1b[2Js");
+  write_text(d.file("first.csv"), first);
+  std::string cell = rec;
+  cell.replace(cell.find("6000"), 4, "60\x1b[31m\r00");
+  write_text(d.file("cell.csv"), cell);
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  m["network"]["links"][0]["both"][0]["resistance"] = "R12\nbtsm validate: all fine";
+  write_text(d.file("ref.json"), m.dump(2));
+  write_text(d.file("esc\x1b[2J.csv"), rec);
+  write_text(d.file("other.csv"), recording_csv(220));  // a check that is no copy of the fit: --effects is read
+  const struct {
+    std::string args, says;
+  } cases[] = {
+      {"validate model.json first.csv", "found 'time\\x1b[2Js'"},
+      {"validate model.json cell.csv", "bad number '60\\x1b[31m\\r00'"},
+      {"validate ref.json rec.csv", "unknown parameter 'R12\\nbtsm validate: all fine'"},
+      {"validate model.json 'gone\x1b[2J.csv'", "gone\\x1b[2J.csv"},
+      {"heat model.json rec.csv --nodes 'shaft\x1b[2J'", "no node 'shaft\\x1b[2J'"},
+      {"heat model.json rec.csv --nodes 'shaft\nbtsm heat: done'", "no node 'shaft\\nbtsm heat: done'"},
+      {"residual --preset spindle4 --fit rec.csv --check other.csv --effects 'x\x1b[2J'", "unknown effect 'x\\x1b[2J'"},
+      {"sim-module --pty p --duration 1 --effect 'x\x1b[2J'", "effect 'x\\x1b[2J'"},
+      {"reduce model.json --speeds 4000,6000 --out r.json --channels 'a\x1b[2J,b,c,d,e'", "'a\\x1b[2J' (channel 1)"},
+  };
+  for (const auto& c : cases) {
+    const CliResult r = run_btsm(d, c.args);
+    EXPECT_EQ(r.code, 2) << c.args << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, c.says)) << c.args << "\n" << r.err;
+    EXPECT_EQ(r.err.find_first_of("\x1b\r"), std::string::npos) << c.args << "\n" << r.err;
+    EXPECT_EQ(r.err.find("\nbtsm validate: all"), std::string::npos) << r.err;
+    EXPECT_EQ(r.err.find("\nbtsm heat: done"), std::string::npos) << r.err;
+  }
+  // A file name a glob brings in is shown escaped on the progress and warning lines too.
+  const CliResult w = run_btsm(d, "validate model.json 'esc\x1b[2J.csv'");
+  EXPECT_EQ(w.code, 0) << w.err;
+  EXPECT_TRUE(mentions(w, "reading esc\\x1b[2J.csv")) << w.err;
+  EXPECT_EQ(w.err.find('\x1b'), std::string::npos) << w.err;
+  // The one helper: DEL, the C1 CSI (U+009B) and a byte that is no UTF-8 are shown too; UTF-8 text
+  // and backslashes stay as they are.
+  EXPECT_EQ(io::printable("a\x7f" "b\xC2\x9B" "c\xB0" "d\t20 \xC2\xB0" "C\\"), "a\\x7fb\\u009bc\\xb0d\\t20 \xC2\xB0" "C\\");
 }
 
 // A named pipe nobody writes to: every reader blocked in open() for ever.

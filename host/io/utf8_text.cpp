@@ -1,0 +1,80 @@
+// UTF-8 decoding by the table of well-formed sequences (Unicode 15, table 3-7): the lead byte fixes
+// the length and the range of the second byte, which rules out overlong forms, surrogates and code
+// points above U+10FFFF.
+#include "host/io/utf8_text.hpp"
+
+#include <cstdio>
+
+namespace btsm::io {
+namespace {
+
+// Length of the well-formed sequence at text[i], 0 when there is none.
+std::size_t sequence_length(std::string_view text, std::size_t i) {
+  const auto byte = [&](std::size_t k) { return i + k < text.size() ? static_cast<unsigned char>(text[i + k]) : 0x100u; };
+  const unsigned b0 = byte(0);
+  if (b0 < 0x80) return 1;
+  std::size_t n = 0;
+  unsigned lo = 0x80, hi = 0xBF;  // range of the second byte
+  if (b0 >= 0xC2 && b0 <= 0xDF) {
+    n = 2;
+  } else if (b0 >= 0xE0 && b0 <= 0xEF) {
+    n = 3;
+    if (b0 == 0xE0) lo = 0xA0;  // below: overlong
+    if (b0 == 0xED) hi = 0x9F;  // above: UTF-16 surrogates
+  } else if (b0 >= 0xF0 && b0 <= 0xF4) {
+    n = 4;
+    if (b0 == 0xF0) lo = 0x90;  // below: overlong
+    if (b0 == 0xF4) hi = 0x8F;  // above: beyond U+10FFFF
+  } else {
+    return 0;  // a continuation byte, C0/C1 (overlong) or F5..FF
+  }
+  if (byte(1) < lo || byte(1) > hi) return 0;
+  for (std::size_t k = 2; k < n; ++k)
+    if (byte(k) < 0x80 || byte(k) > 0xBF) return 0;
+  return n;
+}
+
+void append_hex(std::string& out, const char* form, unsigned value) {
+  char buf[8];
+  std::snprintf(buf, sizeof buf, form, value);
+  out += buf;
+}
+
+}  // namespace
+
+std::size_t invalid_utf8_at(std::string_view text) {
+  for (std::size_t i = 0; i < text.size();) {
+    const std::size_t n = sequence_length(text, i);
+    if (n == 0) return i;
+    i += n;
+  }
+  return std::string_view::npos;
+}
+
+std::string printable(std::string_view text) {
+  std::string out;
+  out.reserve(text.size());
+  for (std::size_t i = 0; i < text.size();) {
+    const auto c = static_cast<unsigned char>(text[i]);
+    const std::size_t n = sequence_length(text, i);
+    if (n == 0) {
+      append_hex(out, "\\x%02x", c);
+      ++i;
+    } else if (n == 1 && (c < 0x20 || c == 0x7F)) {
+      if (c == '\n') out += "\\n";
+      else if (c == '\r') out += "\\r";
+      else if (c == '\t') out += "\\t";
+      else append_hex(out, "\\x%02x", c);
+      ++i;
+    } else if (n == 2 && c == 0xC2 && static_cast<unsigned char>(text[i + 1]) < 0xA0) {
+      append_hex(out, "\\u%04x", static_cast<unsigned char>(text[i + 1]));  // C1: 0xC2 0x9B is U+009B, CSI
+      i += 2;
+    } else {
+      out.append(text.substr(i, n));
+      i += n;
+    }
+  }
+  return out;
+}
+
+}  // namespace btsm::io
