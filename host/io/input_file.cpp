@@ -3,6 +3,7 @@
 #include "host/io/input_file.hpp"
 
 #include "host/io/input_error.hpp"
+#include "host/io/utf8_text.hpp"
 
 #include <fcntl.h>
 #include <sys/stat.h>
@@ -33,6 +34,25 @@ struct Fd {
   throw InputError(path + ": larger than " + size_text(max_bytes) + ", the limit for a " + what);
 }
 
+// The encoding the first bytes of a text file say, when it is UTF-16 or UTF-32 ("" otherwise):
+// spreadsheets and PowerShell save "Unicode" text as UTF-16, with or without a byte order mark.
+// Without a mark only NULs tell (`nul`: the first chunk holds one): every other byte of ASCII in
+// UTF-16, three of four in UTF-32. The UTF-32 LE mark starts with the UTF-16 LE one: tested first.
+std::string utf16_or_32(const char* buf, std::size_t got, bool nul) {
+  const auto b = [&](std::size_t i) { return i < got ? static_cast<unsigned char>(buf[i]) : 0x100u; };
+  const bool n0 = b(0) == 0, n1 = b(1) == 0, n2 = b(2) == 0, n3 = b(3) == 0, all4 = got >= 4;
+  if (b(0) == 0xFF && b(1) == 0xFE && n2 && n3) return "UTF-32 text (little-endian, byte order mark FF FE 00 00)";
+  if (n0 && n1 && b(2) == 0xFE && b(3) == 0xFF) return "UTF-32 text (big-endian, byte order mark 00 00 FE FF)";
+  if (b(0) == 0xFF && b(1) == 0xFE) return "UTF-16 text (little-endian, byte order mark FF FE)";
+  if (b(0) == 0xFE && b(1) == 0xFF) return "UTF-16 text (big-endian, byte order mark FE FF)";
+  if (!nul || !all4) return "";
+  if (!n0 && n1 && n2 && n3) return "UTF-32 text (little-endian, no byte order mark)";
+  if (n0 && n1 && n2 && !n3) return "UTF-32 text (big-endian, no byte order mark)";
+  if (!n0 && n1 && !n2 && n3) return "UTF-16 text (little-endian, no byte order mark)";
+  if (n0 && !n1 && n2 && !n3) return "UTF-16 text (big-endian, no byte order mark)";
+  return "";
+}
+
 }  // namespace
 
 std::string read_input_file(const std::string& path, std::size_t max_bytes, const std::string& what, FileKind kind) {
@@ -60,20 +80,23 @@ std::string read_input_file(const std::string& path, std::size_t max_bytes, cons
     }
     const auto got = static_cast<std::size_t>(n);
     if (kind == FileKind::Text) {
-      if (const void* nul = std::memchr(buf, '\0', got)) {
-        // Spreadsheets and PowerShell save "Unicode" text as UTF-16: every other byte NUL.
-        const auto b = [&](std::size_t i) { return i < got ? static_cast<unsigned char>(buf[i]) : 0x100; };
-        const bool utf16 = out.empty() && ((b(0) == 0xFF && b(1) == 0xFE) || (b(0) == 0xFE && b(1) == 0xFF) ||
-                                           (b(0) != 0 && b(1) == 0 && b(2) != 0 && b(3) == 0));
-        if (utf16) throw InputError(path + ": UTF-16 text, expected a " + what + " in UTF-8 (or ASCII): save it as UTF-8");
+      const void* nul = std::memchr(buf, '\0', got);
+      if (out.empty())
+        if (const std::string wide = utf16_or_32(buf, got, nul != nullptr); !wide.empty())
+          throw InputError(path + ": " + wide + ", expected a " + what + " in UTF-8 (or ASCII): save it as UTF-8");
+      if (nul)
         throw InputError(path + ": not a text file (NUL byte at offset " +
                          std::to_string(out.size() + static_cast<std::size_t>(static_cast<const char*>(nul) - buf)) +
                          "), expected a " + what);
-      }
     }
     if (got > max_bytes - out.size()) too_large(path, max_bytes, what);
     out.append(buf, got);
   }
+  // A Latin-1 or CP1252 file ("°C" as the one byte 0xB0) passed here, and its bytes went on into
+  // names and messages. A UTF-8 byte order mark is UTF-8 and passes (the readers skip it).
+  if (kind == FileKind::Text)
+    if (const std::string problem = utf8_problem(out); !problem.empty())
+      throw InputError(path + ": " + problem + ", expected a " + what + " in UTF-8 (or ASCII): save it as UTF-8");
   return out;
 }
 

@@ -4,6 +4,7 @@
 
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
+#include "host/io/utf8_text.hpp"
 
 #include <functional>
 #include <set>
@@ -81,6 +82,10 @@ class DuplicateKeyWatch {
 }  // namespace
 
 nlohmann::json parse_json_text(std::string_view text, const std::string& source, int max_depth) {
+  // JSON is UTF-8 (RFC 8259); the parser's own word for a Latin-1 byte quotes it raw. Text from
+  // read_input_file is checked already; flash-model reads its file as bytes (it may be a blob).
+  if (const std::string problem = utf8_problem(text); !problem.empty())
+    throw InputError(source + ": " + problem + ", expected JSON in UTF-8: save it as UTF-8");
   check_depth(text, source, max_depth);
   DuplicateKeyWatch watch;
   nlohmann::json value;

@@ -3,6 +3,7 @@
 // points above U+10FFFF.
 #include "host/io/utf8_text.hpp"
 
+#include <algorithm>
 #include <cstdio>
 
 namespace btsm::io {
@@ -49,6 +50,15 @@ std::size_t invalid_utf8_at(std::string_view text) {
     i += n;
   }
   return std::string_view::npos;
+}
+
+std::string utf8_problem(std::string_view text) {
+  const std::size_t at = invalid_utf8_at(text);
+  if (at == std::string_view::npos) return "";
+  std::string out = "not valid UTF-8 at byte " + std::to_string(at) + " (";
+  append_hex(out, "0x%02X", static_cast<unsigned char>(text[at]));
+  const auto line = 1 + std::count(text.begin(), text.begin() + static_cast<std::ptrdiff_t>(at), '\n');
+  return out + ", line " + std::to_string(line) + ")";
 }
 
 std::string printable(std::string_view text) {

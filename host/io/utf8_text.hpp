@@ -13,6 +13,10 @@ namespace btsm::io {
 // byte such as 0xB0 for '°', a cut-off sequence, an overlong form, a surrogate), or npos.
 std::size_t invalid_utf8_at(std::string_view text);
 
+// "" for UTF-8 text, else "not valid UTF-8 at byte 17 (0xB0, line 2)" for a reader's message:
+// which 8-bit encoding such a byte comes from cannot be told, so the byte is named, not a guess.
+std::string utf8_problem(std::string_view text);
+
 // `text` with what a terminal would act on made visible: \n, \r, \t, other control characters
 // and DEL as \xNN (ESC is \x1b), the C1 controls U+0080..U+009F as \u0080..\u009f, and bytes that
 // are not UTF-8 as \xNN. Everything else, backslashes included, is kept as it is.

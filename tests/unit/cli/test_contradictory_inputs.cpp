@@ -285,6 +285,43 @@ TEST(Inputs, Utf16TextAndStepsStretchedToTheSamplesAreNamed) {
   EXPECT_NE(h.out.find("one per sample interval (mean 3600 s): --step 60 s is shorter"), std::string::npos) << h.out;
 }
 
+// What the readers said of other encodings (probe 6): UTF-32 with its byte order mark was "UTF-16
+// text", UTF-16 big-endian and UTF-32 without a mark "not a text file (NUL byte ...)", and a
+// Latin-1 "°C" (the one byte 0xB0) passed into a column name or came back raw from the JSON
+// parser. Each is named now; a UTF-8 byte order mark still passes, in a CSV as in a JSON.
+TEST(Inputs, EveryEncodingIsNamedAndAUtf8ByteOrderMarkPasses) {
+  ScratchDir d;
+  const std::string text = recording_csv(200);
+  const auto wide = [&](int width, bool big, const std::string& mark) {
+    std::string out = mark;
+    for (const char c : text)
+      for (int k = 0; k < width; ++k) out += (big ? k == width - 1 : k == 0) ? c : '\0';
+    return out;
+  };
+  write_text(d.file("be16.csv"), wide(2, true, ""));
+  write_text(d.file("le32bom.csv"), wide(4, false, std::string("\xFF\xFE\0\0", 4)));
+  write_text(d.file("be32.csv"), wide(4, true, ""));
+  std::string latin1 = text;
+  latin1.replace(latin1.find(",T4"), 3, ",T4 \xB0" "C");
+  write_text(d.file("latin1.csv"), latin1);
+  std::string json = spindle4_model_json();
+  write_text(d.file("model.json"), json);
+  write_text(d.file("rec.csv"), text);
+  json.replace(json.find("btsm-thermal-model-1"), 4, "\xB0tsm");
+  write_text(d.file("latin1.json"), json);
+  expect_refusals(d, {{"validate model.json be16.csv", "be16.csv: UTF-16 text (big-endian, no byte order mark)"},
+                      {"validate model.json le32bom.csv", "le32bom.csv: UTF-32 text (little-endian, byte order mark FF FE 00 00)"},
+                      {"validate model.json be32.csv", "be32.csv: UTF-32 text (big-endian, no byte order mark)"},
+                      {"validate model.json latin1.csv", "latin1.csv: not valid UTF-8 at byte 54 (0xB0, line 2)"},
+                      {"validate latin1.json rec.csv", "latin1.json: not valid UTF-8 at byte "}});
+  const CliResult raw = run_btsm(d, "validate latin1.json latin1.csv");
+  EXPECT_EQ(raw.err.find('\xB0'), std::string::npos) << "the byte is named, not quoted";
+  write_text(d.file("bom.csv"), "\xEF\xBB\xBF" + text);
+  write_text(d.file("bom.json"), "\xEF\xBB\xBF" + spindle4_model_json());
+  const CliResult bom = run_btsm(d, "validate bom.json bom.csv");
+  EXPECT_EQ(bom.code, 0) << bom.err;
+}
+
 // The second probe (27 Nov, 537 cases): values at the edge that ended in exit 0 with a wrong result
 // -- heat --noise 1e-7 (2.5e80 K residuals), a one-row check ("none", RMSE 0.0000), --sum-c 3 J/K
 // below what the capacitances' bounds allow ("converged" at 4 J/K), rtd --r0 1e308 (inf),
