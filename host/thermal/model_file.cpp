@@ -110,7 +110,9 @@ FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
   for (int i = 0; i < m.network.param_count(); ++i) {
     const std::string& name = m.network.params[static_cast<std::size_t>(i)].name;
     if (!pv.contains(name) || !pv.at(name).is_number())
-      throw std::invalid_argument(src + ": parameters: missing or non-numeric value for '" + name + "'");
+      throw std::invalid_argument(src + ": parameters: " +
+                                  (pv.contains(name) ? "'" + name + "' is " + io::json_excerpt(pv.at(name)) + ", expected a number"
+                                                     : "missing value for '" + name + "'"));
     m.params[i] = pv.at(name).get<double>();
     if (!std::isfinite(m.params[i])) throw std::invalid_argument(src + ": parameters: '" + name + "' is not finite");
     if (j.contains("sigma") && j.at("sigma").is_object() && j.at("sigma").contains(name) && j.at("sigma").at(name).is_number())

@@ -20,9 +20,13 @@ using nlohmann::json;
   throw std::invalid_argument(src + ": " + where + ": " + what);
 }
 
+// An absent field takes its default; one given as null is refused. null was read as absent, so
+// "min": null silently became 1e-9 and "nominal": null no value: a null is a value left out by a
+// script or an edit, never a request for the default.
 double get_number(const json& j, const char* key, double def, const std::string& src, const std::string& where) {
-  if (!j.contains(key) || j.at(key).is_null()) return def;
+  if (!j.contains(key)) return def;
   const json& v = j.at(key);
+  if (v.is_null()) bad(src, where, std::string("field '") + key + "' is null, expected a number (leave the field out for its default)");
   if (!v.is_number()) bad(src, where, std::string("field '") + key + "' must be a number, found " + io::json_excerpt(v));
   const double d = v.get<double>();
   if (!std::isfinite(d)) bad(src, where, std::string("field '") + key + "' is not finite");
@@ -304,9 +308,9 @@ Network network_from_json(const json& j, const std::string& src) {
     }
   }
   net.name = j.contains("name") ? get_string(j, "name", src, "top level") : std::string("network");
-  net.speed_ref_rpm = get_number(j, "speed_ref_rpm", 5000.0, src, "speed_ref_rpm");
-  net.operating_above_rpm = get_number(j, "operating_above_rpm", 0.0, src, "operating_above_rpm");
-  net.sum_capacitance_J_per_K = get_number(j, "sum_capacitance_J_per_K", std::nan(""), src, "sum_capacitance_J_per_K");
+  net.speed_ref_rpm = get_number(j, "speed_ref_rpm", 5000.0, src, "top level");
+  net.operating_above_rpm = get_number(j, "operating_above_rpm", 0.0, src, "top level");
+  net.sum_capacitance_J_per_K = get_number(j, "sum_capacitance_J_per_K", std::nan(""), src, "top level");
   for (const char* k : {"parameters", "nodes", "links"})
     if (!j.contains(k) || !j.at(k).is_array()) bad(src, k, "missing or not an array");
   check_count(j.at("parameters"), kMaxNetworkParameters, src, "parameters");

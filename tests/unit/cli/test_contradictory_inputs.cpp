@@ -11,6 +11,7 @@
 
 #include <sys/stat.h>
 
+#include <functional>
 #include <string>
 
 namespace btsm::test {
@@ -230,6 +231,38 @@ TEST(Networks, ControlCharactersQuotedFromAnyInputAreShownEscaped) {
   // The one helper: DEL, the C1 CSI (U+009B) and a byte that is no UTF-8 are shown too; UTF-8 text
   // and backslashes stay as they are.
   EXPECT_EQ(io::printable("a\x7f" "b\xC2\x9B" "c\xB0" "d\t20 \xC2\xB0" "C\\"), "a\\x7fb\\u009bc\\xb0d\\t20 \xC2\xB0" "C\\");
+}
+
+// A network field given as null took its default silently (probe 6): "min": null became 1e-9, a
+// term's "speed_exponent": null made a heat source that grows with speed^1.67 a constant one.
+// null is refused, naming the field and its entry; a parameter's value too. A sigma of null is
+// what `fit` writes for one it could not tell, and still passes.
+TEST(Networks, NullWhereANumberBelongsIsRefusedNotTakenAsTheDefault) {
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  const nlohmann::json base = nlohmann::json::parse(spindle4_model_json());
+  const auto with = [&](const std::string& name, const std::function<void(nlohmann::json&)>& edit) {
+    nlohmann::json m = base;
+    edit(m);
+    write_text(d.file(name), m.dump(2));
+  };
+  with("min.json", [](nlohmann::json& m) { m["network"]["parameters"][3]["min"] = nullptr; });
+  with("exponent.json", [](nlohmann::json& m) { m["network"]["sources"][0]["operating"][0]["speed_exponent"] = nullptr; });
+  with("speed.json", [](nlohmann::json& m) { m["network"]["speed_ref_rpm"] = nullptr; });
+  with("value.json", [](nlohmann::json& m) { m["parameters"]["R34"] = nullptr; });
+  with("sigma.json", [](nlohmann::json& m) { m["sigma"]["R34"] = nullptr; });
+  write_text(d.file("net.json"), [&] {
+    nlohmann::json n = base["network"];
+    n["parameters"][3]["nominal"] = nullptr;
+    return n.dump(2);
+  }());
+  expect_refusals(d, {{"validate min.json rec.csv", "min.json (network): parameter 'R34': field 'min' is null, expected a number"},
+                      {"validate exponent.json rec.csv", "source 'Qf1'.operating[0]: field 'speed_exponent' is null, expected a number"},
+                      {"validate speed.json rec.csv", "speed.json (network): top level: field 'speed_ref_rpm' is null"},
+                      {"validate value.json rec.csv", "value.json: parameters: 'R34' is null, expected a number"},
+                      {"heat net.json rec.csv --noise 0.01", "net.json: parameter 'R34': field 'nominal' is null"}});
+  const CliResult sigma = run_btsm(d, "validate sigma.json rec.csv");
+  EXPECT_EQ(sigma.code, 0) << sigma.err;
 }
 
 // A named pipe nobody writes to: every reader blocked in open() for ever.
