@@ -19,4 +19,19 @@ inline bool has_control_char(const std::string& s) {
   return false;
 }
 
+// A name that becomes a CSV column (a recording's header, heat's NODE_W) or an entry of a list or
+// spec the tool reads back (--nodes a,b, --channels, --column NODE=COLUMN, # channel_roles:
+// COLUMN=ROLE) cannot hold ',' or '=', nor blanks at its ends, which CSV cells lose: such a name
+// was accepted, then could never be named again. "" when `s` is fine, else what is wrong with it.
+inline std::string name_problem(const std::string& s) {
+  if (has_control_char(s)) return "contains a control character";
+  if (s.find(',') != std::string::npos)
+    return "contains ',' (it would split the name in a CSV header and in lists such as --nodes)";
+  if (s.find('=') != std::string::npos)
+    return "contains '=' (it would split the name in NAME=VALUE specs: --column NODE=COLUMN, # channel_roles)";
+  if (!s.empty() && (s.front() == ' ' || s.back() == ' '))
+    return "starts or ends with a blank (a CSV header or a list entry loses it)";
+  return "";
+}
+
 }  // namespace btsm::io

@@ -10,6 +10,7 @@
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <tuple>
 
 namespace btsm::thermal {
 namespace {
@@ -194,16 +195,20 @@ void Network::validate() const {
   if (io::has_control_char(name)) bad("network " + json(name).dump(), "name", "contains a control character");
   const std::string src = "network '" + name + "'";
   {
-    std::vector<std::pair<std::string, std::string>> names;  // (what, name)
-    for (const auto& p : params) names.emplace_back("parameter", p.name);
-    for (const auto& n : nodes) names.emplace_back("node", n.name);
-    for (const auto& l : links) names.emplace_back("link", l.name);
-    for (const auto& s : sources) names.emplace_back("source", s.name);
-    for (const auto& m : measurements) names.emplace_back("measurement column", m.column);
-    for (const auto& b : boundaries) names.emplace_back("boundary column", b);
-    for (const auto& e : events) names.emplace_back("event column", e);
-    for (const auto& [what, n] : names)
+    // (what, name, also a column or list entry): nodes are named in --nodes, --channels and
+    // --column NODE=COLUMN and head heat's CSV columns; the columns are a recording's header
+    std::vector<std::tuple<std::string, std::string, bool>> names;
+    for (const auto& p : params) names.emplace_back("parameter", p.name, false);
+    for (const auto& n : nodes) names.emplace_back("node", n.name, true);
+    for (const auto& l : links) names.emplace_back("link", l.name, false);
+    for (const auto& s : sources) names.emplace_back("source", s.name, false);
+    for (const auto& m : measurements) names.emplace_back("measurement column", m.column, true);
+    for (const auto& b : boundaries) names.emplace_back("boundary column", b, true);
+    for (const auto& e : events) names.emplace_back("event column", e, true);
+    for (const auto& [what, n, listed] : names) {
       if (io::has_control_char(n)) bad(src, what + " " + json(n).dump(), "contains a control character");
+      if (const std::string why = io::name_problem(n); listed && !why.empty()) bad(src, what + " " + json(n).dump(), why);
+    }
   }
   if (nodes.empty()) bad(src, "nodes", "at least one node is required");
   if (!(speed_ref_rpm > 0)) bad(src, "speed_ref_rpm", "must be > 0");

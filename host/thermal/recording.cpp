@@ -162,6 +162,9 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
         if (cells[c].empty()) fail(source, line_no, c + 1, "header: empty column name");
         if (io::has_control_char(cells[c]))
           fail(source, line_no, c + 1, "header: column " + std::to_string(c + 1) + "'s name contains a control character");
+        // ',' and outer blanks a header cannot hold; '=' would split `# channel_roles: COLUMN=ROLE`
+        if (const std::string why = io::name_problem(cells[c]); !why.empty())
+          fail(source, line_no, c + 1, "header: column '" + shown(cells[c]) + "' " + why);
         if (!seen.insert(cells[c]).second) fail(source, line_no, c + 1, "header: duplicate column '" + shown(cells[c]) + "'");
         rec.channels.push_back(cells[c]);
       }

@@ -265,6 +265,35 @@ TEST(Networks, NullWhereANumberBelongsIsRefusedNotTakenAsTheDefault) {
   EXPECT_EQ(sigma.code, 0) << sigma.err;
 }
 
+// A node named "sh,aft", "sh=aft" or " shaft" was taken (probe 6), and then could not be named:
+// `--nodes sh,aft` asked for nodes "sh" and "aft", heat's CSV header gained a column, --column
+// sh=aft=T4 split at the first '='. Such names, of nodes and of the columns a network or a
+// recording names, are refused where they are read, with the name and the file.
+TEST(Networks, NamesThatCouldNotBeNamedAgainAreRefused) {
+  ScratchDir d;
+  const std::string rec = recording_csv(200);
+  write_text(d.file("rec.csv"), rec);
+  const std::string model = spindle4_model_json();
+  const auto renamed = [&](const std::string& from, const std::string& to) {
+    std::string m = model;
+    for (std::size_t at = m.find(from); at != std::string::npos; at = m.find(from, at + to.size())) m.replace(at, from.size(), to);
+    return m;
+  };
+  write_text(d.file("comma.json"), renamed("\"shaft\"", "\"sh,aft\""));
+  write_text(d.file("equals.json"), renamed("\"shaft\"", "\"sh=aft\""));
+  write_text(d.file("blank.json"), renamed("\"shaft\"", "\" shaft\""));
+  write_text(d.file("column.json"), renamed("\"T4\"", "\"T4 \""));
+  std::string header = rec;
+  header.replace(header.find(",T4\n"), 4, ",T=4\n");
+  write_text(d.file("header.csv"), header);
+  write_text(d.file("model.json"), model);
+  expect_refusals(d, {{"validate comma.json rec.csv", "comma.json (network): network 'spindle4': node \"sh,aft\": contains ','"},
+                      {"validate equals.json rec.csv", "equals.json (network): network 'spindle4': node \"sh=aft\": contains '='"},
+                      {"heat blank.json rec.csv", "blank.json (network): network 'spindle4': node \" shaft\": starts or ends with a blank"},
+                      {"validate column.json rec.csv", "measurement column \"T4 \": starts or ends with a blank"},
+                      {"validate model.json header.csv", "header.csv:2:7: header: column 'T=4' contains '='"}});
+}
+
 // A named pipe nobody writes to: every reader blocked in open() for ever.
 TEST(Inputs, ANamedPipeWithoutAWriterIsAnErrorNotAHang) {
   ScratchDir d;
