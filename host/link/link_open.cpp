@@ -14,6 +14,8 @@
 
 #include <algorithm>
 #include <chrono>
+#include <filesystem>
+#include <optional>
 #include <thread>
 
 namespace btsm::link {
@@ -44,6 +46,19 @@ std::string only_adapter_tty(const std::string& sysfs_root) {
                                                 "): choose one with --port");
 }
 
+// Where `path` leads when it is a symbolic link whose target does not exist, else nullopt. Such a
+// link is no device that may still appear: udev makes /dev/serial/by-id/... when the adapter
+// appears and removes it with it, and sim-module makes its link once its pty exists; one that
+// dangles names a device that is gone (an adapter unplugged without udev, a simulator killed).
+std::optional<std::string> dangling_link_target(const std::string& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0 || !S_ISLNK(st.st_mode)) return std::nullopt;
+  if (::stat(path.c_str(), &st) == 0 || errno != ENOENT) return std::nullopt;
+  std::error_code ec;
+  const auto target = std::filesystem::read_symlink(path, ec);
+  return ec ? std::string("?") : target.string();
+}
+
 }  // namespace
 
 std::string serial_port_for(const LinkSpec& spec) {
@@ -52,6 +67,10 @@ std::string serial_port_for(const LinkSpec& spec) {
                     "firmware is flashed through the module's USB serial port (Optiboot), not over Bluetooth: "
                     "connect it by USB and pass --port or --usb");
   if (!spec.port.empty()) {
+    if (const auto target = dangling_link_target(spec.port))
+      throw LinkError(LinkErrorKind::kNoDevice, "serial " + spec.port + ": a dangling symbolic link to " + *target +
+                                                    ", which does not exist: the device it named is gone; `btsm list` "
+                                                    "shows serial adapters");
     // A port that does not exist yet is left to the programmer (a dry run prints the command for
     // later); one that exists must be a character device: avrdude was handed a regular file.
     struct stat st {};
@@ -79,16 +98,17 @@ std::string serial_port_for(const LinkSpec& spec) {
 namespace {
 // Returns when `path` exists, its directory does not, or `wait_s` has passed (a README block
 // pasted whole ran `set-config` before the `sim-module &` of the line before had made its link).
+// A dangling symbolic link is not waited for (serial_port_for names it): it waited 5 s to fail.
 void wait_for_port_to_appear(const std::string& path, double wait_s) {
   struct stat st {};
-  if (path.empty() || ::stat(path.c_str(), &st) == 0 || errno != ENOENT) return;
+  if (path.empty() || ::lstat(path.c_str(), &st) == 0 || errno != ENOENT) return;
   const auto slash = path.find_last_of('/');
   const std::string dir = slash == std::string::npos ? "." : slash == 0 ? "/" : path.substr(0, slash);
   if (::stat(dir.c_str(), &st) != 0 || !S_ISDIR(st.st_mode)) return;
   const auto deadline = std::chrono::steady_clock::now() + std::chrono::duration<double>(wait_s);
   while (std::chrono::steady_clock::now() < deadline) {
     std::this_thread::sleep_for(std::chrono::milliseconds(50));
-    if (::stat(path.c_str(), &st) == 0) return;
+    if (::lstat(path.c_str(), &st) == 0) return;
   }
 }
 }  // namespace

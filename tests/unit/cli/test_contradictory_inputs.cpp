@@ -10,7 +10,9 @@
 #include <gtest/gtest.h>
 
 #include <sys/stat.h>
+#include <unistd.h>
 
+#include <chrono>
 #include <functional>
 #include <string>
 
@@ -447,6 +449,20 @@ TEST(Inputs, APortThatIsNoSerialDeviceIsNoDevice) {
   expect_refusals(d, {{"info --port file.txt", "not a serial device"}, {"info --port /dev/null", "not a serial device"},
                       {"info --port " + d.path, "a directory, not a serial device"}},
                   3);
+}
+
+// A --port that is a symbolic link to nothing waited the 5 s a port that is not there yet gets,
+// then said "no such device" (probe 6). /dev/serial/by-id links come and go with their adapter,
+// so one that dangles names a device that is gone: exit 3 at once, naming the link's target.
+TEST(Inputs, APortLinkToNothingFailsAtOnceNamingItsTarget) {
+  ScratchDir d;
+  ASSERT_EQ(::symlink(d.file("ttyGONE0").c_str(), d.file("by-id-link").c_str()), 0);
+  const auto start = std::chrono::steady_clock::now();
+  const CliResult r = run_btsm(d, "info --port by-id-link", 20);
+  const double took = std::chrono::duration<double>(std::chrono::steady_clock::now() - start).count();
+  EXPECT_EQ(r.code, 3) << r.err;
+  EXPECT_TRUE(mentions(r, "by-id-link: a dangling symbolic link to " + d.file("ttyGONE0"))) << r.err;
+  EXPECT_LT(took, 2.5);
 }
 
 // Two rows at rest "calibrated" the detector and wrote the blob.
