@@ -398,7 +398,7 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     io::refuse_output_over_input(a.out, "--out", inputs);
     inputs.push_back(a.out);
     io::refuse_output_over_input(a.blob, "--blob", inputs);
-    // before the reduction, not after it
+    // before the reduction, not after it (and a bad --blob after --out had been replaced)
     io::refuse_output_file_that_cannot_be_made(a.out, "--out", "reduced model JSON");
     io::refuse_output_file_that_cannot_be_made(a.blob, "--blob", "model blob");
   }
@@ -607,13 +607,16 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   j["model"] = a.model;
   j["speed_coverage"] = speed_coverage_to_json(cover);
   if (!calibration.is_null()) j["detector_calibration"] = calibration;
-  save_json(a.out, j);
+  // The JSON and the blob are one result (the JSON holds the blob's bytes as blob_hex): both are
+  // written, or neither (a failed --blob had already replaced the JSON).
+  const std::string json_text = json_file_text(j);
+  std::vector<io::OutputFile> outputs{{a.out, json_text, "JSON"}};
+  if (!a.blob.empty())
+    outputs.push_back({a.blob, std::string_view(reinterpret_cast<const char*>(r.blob.data()), r.blob.size()), "model blob"});
+  io::write_output_files(outputs);
   std::cerr << "reduce: wrote " << a.out << "\n";
-  if (!a.blob.empty()) {
-    io::write_output_file(a.blob, std::string_view(reinterpret_cast<const char*>(r.blob.data()), r.blob.size()),
-                          "model blob");
+  if (!a.blob.empty())
     std::cerr << "reduce: wrote " << a.blob << " (" << r.blob.size() << " bytes, format version " << int(kReducedModelVersion) << ")\n";
-  }
   if (a.json_out) {
     print_json(j);
     return;

@@ -1,8 +1,9 @@
 // Output places, from hostile-input probe 7: named pipes in the key store and as outputs hung
 // `keys`, `record`, `sim-module --truth-out`, `flash-firmware --out` and the plot writers for ever
-// (F1); outputs that cannot be written were found after the whole run, with exit 1 (F3). Every
-// child runs under a time limit, and the library checks of a writer run in a child killed by
-// alarm(): a writer that waits on a named pipe again fails its test instead of hanging the suite.
+// (F1); outputs that cannot be written were found after the whole run, with exit 1 (F3); a failed
+// `reduce --blob` had already replaced the `--out` JSON (F4). Every child runs under a time limit,
+// and the library checks of a writer run in a child killed by alarm(): a writer that waits on a
+// named pipe again fails its test instead of hanging the suite.
 #include "cli_run.hpp"
 #include "model_fixture.hpp"
 #include "refusals.hpp"
@@ -152,6 +153,43 @@ TEST(OutputPlaces, AnOutputPlaceThatCannotBeWrittenIsRefusedBeforeTheWork) {
   EXPECT_TRUE(fs::is_empty(d.file("adir")));
   EXPECT_FALSE(file_exists(d.file("r.json")));
   expect_no_temporaries(d.path);
+}
+
+// A reduce whose --blob cannot be written replaced the reduced JSON of the pair first, then failed
+// with exit 1 (probe 7 F4): the pair on disk no longer belonged together. Now both places are
+// checked before the reduction and the pair is written both or neither; the old pair is kept byte
+// for byte.
+TEST(OutputPlaces, ReduceWritesItsJsonAndBlobBothOrNeither) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  fs::create_directories(d.file("pair/blobdir"));
+  ASSERT_EQ(run_btsm(d, "reduce model.json --speeds 4000,6000 --force --out pair/r.json --blob pair/m.bin", 300).code, 0);
+  const std::string json = read_text(d.file("pair/r.json")), blob = read_text(d.file("pair/m.bin"));
+  ASSERT_FALSE(json.empty());
+  expect_refusals(d,
+                  {{"reduce model.json --speeds 3000,6000 --force --out pair/r.json --blob pair/blobdir",
+                    "--blob pair/blobdir: a directory, not a file to write the model blob to"},
+                   {"reduce model.json --speeds 3000,6000 --force --out pair/r.json --blob nodir/m.bin",
+                    "--blob nodir/m.bin: its directory nodir does not exist"}},
+                  2, 300);
+  EXPECT_EQ(read_text(d.file("pair/r.json")), json);
+  EXPECT_EQ(read_text(d.file("pair/m.bin")), blob);
+  expect_no_temporaries(d.path);
+}
+
+// The same at the write itself, for a failure no check before the work can see: the second file
+// of the pair cannot be created. Neither destination changes and no temporary file is left.
+TEST(OutputPlaces, WriteOutputFilesIsAllOrNothing) {
+  ScratchDir d;
+  write_text(d.file("a.json"), "old a\n");
+  EXPECT_THROW(io::write_output_files({{d.file("a.json"), "new a\n", "JSON"}, {d.file("gone/b.bin"), "new b", "blob"}}),
+               std::runtime_error);
+  EXPECT_EQ(read_text(d.file("a.json")), "old a\n");
+  EXPECT_FALSE(file_exists(d.file("gone")));
+  expect_no_temporaries(d.path);
+  io::write_output_files({{d.file("a.json"), "new a\n", "JSON"}, {d.file("b.bin"), "new b", "blob"}});
+  EXPECT_EQ(read_text(d.file("a.json")), "new a\n");
+  EXPECT_EQ(read_text(d.file("b.bin")), "new b");
 }
 
 // Runs `body` in a child that alarm() stops after 5 s: it must throw std::runtime_error at once.
