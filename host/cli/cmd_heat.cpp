@@ -91,15 +91,16 @@ void write_outputs(const HeatArgs& a, const th::Network& net, const th::Recordin
                   rp::network_figure_options(net));
 }
 
+// What heat writes into --out.
+const std::vector<io::OutputName> kHeatOutputs{{"heat_sources.csv", "heat sources"}, {"heat_alpha_scan.csv", "alpha scan"},
+                                               {"heat_sources.png", "plot"}, {"heat_sources.svg", "plot"}};
+
 void run_heat(const HeatArgs& a) {
-  try {
-    io::refuse_output_dir_that_is_no_directory(a.out_dir, "--out");
-  } catch (const std::exception& e) {
-    throw CommandError(kExitUsage, e.what());
-  }
+  // Before the inverse: an --out that could not be made failed after it (exit 1), and a named pipe
+  // in it under an output's name blocked for ever.
+  io::refuse_output_dir_that_cannot_be_made(a.out_dir, "--out", kHeatOutputs);
   if (!a.out_dir.empty())
-    for (const char* name : {"/heat_sources.csv", "/heat_alpha_scan.csv", "/heat_sources.png", "/heat_sources.svg"})
-      io::refuse_output_over_input(a.out_dir + name, "--out", {a.model, a.recording});
+    for (const auto& f : kHeatOutputs) io::refuse_output_over_input(a.out_dir + "/" + f.name, "--out", {a.model, a.recording});
   th::HeatInverseOptions o;
   try {
     o.order = th::parse_tikhonov_order(a.method);

@@ -92,7 +92,7 @@ void run_flash_firmware(const FlashFirmwareArgs& a) {
   const std::string out = a.out.empty() ? "btsm-fw-" + device_id_text(id) + ".hex" : a.out;
   try {  // the patched image over its own input would replace the build's image with one module's key
     io::refuse_output_over_input(out, "--out", {a.hex.empty() ? default_hex_path() : a.hex, a.link.port});
-    io::refuse_output_file_that_cannot_be_made(out, "--out");
+    io::refuse_output_file_that_cannot_be_made(out, "--out", "patched firmware image");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }

@@ -177,7 +177,7 @@ void run_record(const RecordArgs& a) {
   // --out at the module's own port wrote the CSV into the link (frame errors, no recording).
   try {
     io::refuse_output_over_input(a.out, "--out", {a.link.port});
-    io::refuse_output_file_that_cannot_be_made(a.out, "--out");  // before connecting, not after
+    io::refuse_output_file_that_cannot_be_made(a.out, "--out", "recording");  // before connecting, not after
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }

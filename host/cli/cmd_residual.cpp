@@ -38,7 +38,8 @@ void run_residual(ResidualArgs& a) {
   th::ModelWithParameters model;
   std::vector<th::Recording> fit, check;
   try {
-    io::refuse_output_dir_that_is_no_directory(a.report_dir, "--report");
+    // before the loop, which may run for half an hour: an unwritable --report failed after it
+    io::refuse_output_dir_that_cannot_be_made(a.report_dir, "--report", rs::report_files());
     if (!a.preset.empty()) {
       model.network = th::preset_network(a.preset);
       model.params = th::default_parameters(model.network);

@@ -91,8 +91,10 @@ void run_sim(const SimArgs& a) {
   try {
     io::refuse_output_over_input(a.truth_out, "--truth-out", {a.profile_file, a.eeprom, a.elf, a.pty});
     io::refuse_output_over_input(a.eeprom, "--eeprom", {a.profile_file, a.elf, a.pty});
-    // saved at the end: a missing directory was found only after the whole run (probe 5)
-    if (!a.eeprom.empty()) io::refuse_output_file_that_cannot_be_made(a.eeprom, "--eeprom");
+    // before the run: a missing directory of --eeprom was found only after it (probe 5), and a
+    // --truth-out that is a named pipe blocked for ever (probe 7)
+    io::refuse_output_file_that_cannot_be_made(a.eeprom, "--eeprom", "module EEPROM image");
+    io::refuse_output_file_that_cannot_be_made(a.truth_out, "--truth-out", "truth CSV");
     if (io::same_output_file(a.truth_out, a.eeprom))
       throw io::InputError("--truth-out and --eeprom name the same file " + a.eeprom + ": each needs its own");
   } catch (const std::exception& e) {

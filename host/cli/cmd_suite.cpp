@@ -1,6 +1,7 @@
 // `btsm effect-suite`: the undeclared-effect suite (host/sim/suite) -- recordings of the paper's
 // identification procedure on the simulated spindle, each with one hidden effect (or none), the
 // real `btsm residual` run on each, and the table of what it named.
+#include "host/io/output_file.hpp"
 #include "host/io/utf8_text.hpp"
 #include "host/sim/suite/runner.hpp"
 #include "cli_support.hpp"
@@ -50,6 +51,8 @@ void run_effect_suite(const SuiteArgs& a) {
     }
     return;
   }
+  // Before the first case is generated or run (a --out naming a file gave a raw "filesystem error").
+  io::refuse_output_dir_that_cannot_be_made(a.out, "--out");
   su::RunnerOptions ro;
   ro.out_dir = a.out;
   ro.btsm_path = a.btsm.empty() ? self_path() : a.btsm;

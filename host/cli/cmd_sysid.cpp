@@ -61,6 +61,7 @@ void run_fit(const FitArgs& a) {
     std::vector<std::string> inputs = a.recordings;
     if (!a.network.empty()) inputs.push_back(a.network);
     io::refuse_output_over_input(a.out, "--out", inputs);
+    io::refuse_output_file_that_cannot_be_made(a.out, "--out", "model JSON");  // before the fit, not after
   }
   Network net;
   try {
@@ -131,16 +132,38 @@ struct ValidateArgs {
   std::size_t initial_rows = 120;
 };
 
-// `used` holds the stems written so far: two recordings of one name in different folders
-// (A/check.csv, B/check.csv) wrote one plot over the other (probe 5); the second gets "_2".
+// The plots' names in `dir` (without .png/.svg), one per recording: validate_<recording's stem>.
+// Two recordings of one name in different folders (A/check.csv, B/check.csv) wrote one plot over
+// the other (probe 5); the second gets "_2".
+std::vector<std::string> plot_stems(const std::vector<std::string>& recordings, const std::string& dir) {
+  std::vector<std::string> stems;
+  std::set<std::string> used;
+  for (const auto& r : recordings) {
+    const std::string base = (std::filesystem::path(dir) / ("validate_" + std::filesystem::path(r).stem().string())).string();
+    std::string stem = base;
+    for (int n = 2; used.count(stem) > 0; ++n) stem = base + "_" + std::to_string(n);
+    used.insert(stem);
+    stems.push_back(stem);
+  }
+  return stems;
+}
+
+// Checked before the recordings are read: a --plots that cannot take the plots failed after the
+// metrics (a raw "filesystem error" for a file given as --plots), and a plot name that is a named
+// pipe blocked for ever.
+void refuse_plots_dir_that_cannot_be_made(const ValidateArgs& a) {
+  std::vector<io::OutputName> files;
+  for (const auto& stem : plot_stems(a.recordings, a.plots))
+    for (const char* ext : {".png", ".svg"}) files.push_back({std::filesystem::path(stem + ext).filename().string(), "plot"});
+  io::refuse_output_dir_that_cannot_be_made(a.plots, "--plots", files);
+}
+
 void plot_validation(const Network& net, const Recording& rec, const RecordingValidation& v, const std::string& dir,
-                     std::set<std::string>& used) {
+                     const std::string& stem) {
   namespace rp = btsm::report;
-  std::filesystem::create_directories(dir);
-  const std::string base = (std::filesystem::path(dir) / ("validate_" + std::filesystem::path(rec.source).stem().string())).string();
-  std::string stem = base;
-  for (int n = 2; used.count(stem) > 0; ++n) stem = base + "_" + std::to_string(n);
-  used.insert(stem);
+  std::error_code ec;
+  std::filesystem::create_directories(dir, ec);
+  if (ec) throw CommandError(kExitFailure, "cannot create --plots directory " + dir + ": " + ec.message());
   rp::save_figure(rp::validation_figure(net, rec, v, std::filesystem::path(rec.source).filename().string()), stem,
                   rp::network_figure_options(net));
   std::cerr << "validate: wrote " << stem << ".png/.svg\n";
@@ -152,6 +175,7 @@ json metrics_json(const ErrorMetrics& m) {
 }
 
 void run_validate(const ValidateArgs& a) {
+  if (!a.plots.empty()) refuse_plots_dir_that_cannot_be_made(a);
   FittedModel model;
   try {
     model = load_model(a.model);
@@ -186,8 +210,9 @@ void run_validate(const ValidateArgs& a) {
                                "rows it was fitted to\n",
                                io::printable(rec.source), a.initial_rows, rec.rows());
   if (!a.json_out) std::cout << kNmseConvention << "\n";
-  std::set<std::string> plot_stems;
-  for (const auto& rec : recs) {
+  const std::vector<std::string> stems = plot_stems(a.recordings, a.plots);
+  for (std::size_t i = 0; i < recs.size(); ++i) {
+    const Recording& rec = recs[i];
     RecordingValidation v;
     try {
       v = validate_recording(net, model.params, rec, o);
@@ -238,7 +263,7 @@ void run_validate(const ValidateArgs& a) {
         std::cout << "  steady state: -- (no run at one speed that ends in a stop)\n";
     }
     out["recordings"].push_back(rj);
-    if (!a.plots.empty()) plot_validation(net, rec, v, a.plots, plot_stems);
+    if (!a.plots.empty()) plot_validation(net, rec, v, a.plots, stems[i]);
   }
   out["nmse"] = nmse;
   out["rmse_K"] = rmse;
@@ -373,6 +398,9 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     io::refuse_output_over_input(a.out, "--out", inputs);
     inputs.push_back(a.out);
     io::refuse_output_over_input(a.blob, "--blob", inputs);
+    // before the reduction, not after it (and a bad --blob after --out had been replaced)
+    io::refuse_output_file_that_cannot_be_made(a.out, "--out", "reduced model JSON");
+    io::refuse_output_file_that_cannot_be_made(a.blob, "--blob", "model blob");
   }
   FittedModel model;
   try {
@@ -579,13 +607,16 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
   j["model"] = a.model;
   j["speed_coverage"] = speed_coverage_to_json(cover);
   if (!calibration.is_null()) j["detector_calibration"] = calibration;
-  save_json(a.out, j);
+  // The JSON and the blob are one result (the JSON holds the blob's bytes as blob_hex): both are
+  // written, or neither (a failed --blob had already replaced the JSON).
+  const std::string json_text = json_file_text(j);
+  std::vector<io::OutputFile> outputs{{a.out, json_text, "JSON"}};
+  if (!a.blob.empty())
+    outputs.push_back({a.blob, std::string_view(reinterpret_cast<const char*>(r.blob.data()), r.blob.size()), "model blob"});
+  io::write_output_files(outputs);
   std::cerr << "reduce: wrote " << a.out << "\n";
-  if (!a.blob.empty()) {
-    io::write_output_file(a.blob, std::string_view(reinterpret_cast<const char*>(r.blob.data()), r.blob.size()),
-                          "model blob");
+  if (!a.blob.empty())
     std::cerr << "reduce: wrote " << a.blob << " (" << r.blob.size() << " bytes, format version " << int(kReducedModelVersion) << ")\n";
-  }
   if (a.json_out) {
     print_json(j);
     return;

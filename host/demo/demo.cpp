@@ -53,7 +53,7 @@ void check_demo_options(const DemoOptions& opts) {
     const std::string elf = opts.elf_path.empty() ? default_elf() : opts.elf_path;
     if (const std::string why = sim::avr_elf_problem(elf); !why.empty()) throw std::invalid_argument("--elf " + elf + ": " + why);
   }
-  io::refuse_output_dir_that_is_no_directory(opts.out_dir, "--out");
+  io::refuse_output_dir_that_cannot_be_made(opts.out_dir, "--out");
 }
 
 DemoSummary run_demo(const DemoOptions& opts) {

@@ -2,6 +2,7 @@
 
 #include "common/model_blob.hpp"
 #include "common/model_step.hpp"
+#include "host/io/output_file.hpp"
 #include "host/report/plot_style.hpp"
 #include "host/report/thermal_figures.hpp"
 #include "host/residual/residual_loop.hpp"
@@ -21,7 +22,6 @@
 #include <algorithm>
 #include <cmath>
 #include <filesystem>
-#include <fstream>
 
 namespace fs = std::filesystem;
 
@@ -105,10 +105,7 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
   const residual::LoopResult loop = residual::run_residual_loop(net, fit.params, fit_recs, check_recs, lo);
   fs::create_directories(dir / "residual");
   residual::write_report(loop, check_recs, (dir / "residual").string(), fit_recs.empty() ? nullptr : &fit_recs.front());
-  {
-    std::ofstream j(dir / "residual" / "residual.json");
-    j << residual::to_json(loop).dump(2) << "\n";
-  }
+  io::write_output_file((dir / "residual" / "residual.json").string(), residual::to_json(loop).dump(2) + "\n", "residual result");
   out.effect = loop.label.empty() ? loop.effect : loop.label;
   out.effect_nodes = loop.nodes;
   out.check_rmse_before_K = loop.before_check.rmse_k;
@@ -200,10 +197,8 @@ AnalysisOutputs analyse(const AnalysisInputs& in, report::HtmlReport& page) {
     rj["detector_calibration"] = {{"rule", cal.rule}, {"recordings", cal.recordings}, {"channels", cb}};
   }
   thermal::save_json(out.reduced_json, rj);
-  {
-    std::ofstream b(dir / "models" / "reduced_model.bin", std::ios::binary);
-    b.write(reinterpret_cast<const char*>(out.blob.data()), static_cast<std::streamsize>(out.blob.size()));
-  }
+  io::write_output_file((dir / "models" / "reduced_model.bin").string(),
+                        std::string_view(reinterpret_cast<const char*>(out.blob.data()), out.blob.size()), "model blob");
   std::vector<std::vector<std::string>> rrow;
   report::Plot hsv{"Hankel singular values per speed", "state index", "Hankel singular value (K/W)", {}, true};
   for (const auto& s : red.speeds) {

@@ -1,6 +1,7 @@
 #include "host/demo/production_watch.hpp"
 
 #include "common/wire_messages.hpp"
+#include "host/io/output_file.hpp"
 #include "host/link/device_keys.hpp"
 #include "host/report/plot_style.hpp"
 
@@ -22,6 +23,9 @@ ProductionResult watch_production(link::Session& session, const link::ModuleIden
   ProductionResult r;
   namespace fs = std::filesystem;
   const std::string csv_path = (fs::path(o.out_dir) / "recordings" / "production.csv").string();
+  // Written row by row as an ofstream; checked first, as every output: a named pipe there blocked
+  // the demo for ever.
+  io::refuse_output_file_that_cannot_be_made(csv_path, "demo output", "production CSV");
   std::ofstream csv(csv_path);
   csv << "# production phase: module diagnosis per sample (states: 0 NORMAL 1 WARN 2 ALARM 3 SENSOR_FAULT)\n"
       << "# fault_start_s: " << o.fault_s - o.start_s << "\n"

@@ -22,14 +22,6 @@ std::string size_text(std::size_t bytes) {
 
 namespace {
 
-// Closes the descriptor on every path out of read_input_file.
-struct Fd {
-  int fd;
-  ~Fd() {
-    if (fd >= 0) ::close(fd);
-  }
-};
-
 [[noreturn]] void too_large(const std::string& path, std::size_t max_bytes, const std::string& what) {
   throw InputError(path + ": larger than " + size_text(max_bytes) + ", the limit for a " + what);
 }
@@ -55,27 +47,46 @@ std::string utf16_or_32(const char* buf, std::size_t got, bool nul) {
 
 }  // namespace
 
-std::string read_input_file(const std::string& path, std::size_t max_bytes, const std::string& what, FileKind kind) {
+std::string file_type_name(mode_t mode) {
+  if (S_ISREG(mode)) return "";
+  if (S_ISDIR(mode)) return "a directory";
+  if (S_ISFIFO(mode)) return "a named pipe";
+  if (S_ISSOCK(mode)) return "a socket";
+  if (S_ISCHR(mode)) return "a character device";
+  if (S_ISBLK(mode)) return "a block device";
+  if (S_ISLNK(mode)) return "a symbolic link";
+  return "no regular file";
+}
+
+InputFile::InputFile(const std::string& path, const std::string& what, int extra_flags) : path_(path), what_(what) {
   // O_NONBLOCK: opening a named pipe no program writes to would wait for a writer for ever; so
   // opened, the pipe reads as empty at once. Reads block again once the file is open.
-  const Fd f{::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK)};
-  if (f.fd < 0) throw InputError(path + ": cannot open " + what + ": " + std::strerror(errno));
-  struct stat st {};
-  if (::fstat(f.fd, &st) != 0) throw InputError(path + ": cannot stat " + what + ": " + std::strerror(errno));
-  if (S_ISDIR(st.st_mode)) throw InputError(path + ": is a directory, not a " + what);
-  if (const int flags = ::fcntl(f.fd, F_GETFL); flags < 0 || ::fcntl(f.fd, F_SETFL, flags & ~O_NONBLOCK) < 0)
-    throw InputError(path + ": cannot read " + what + ": " + std::strerror(errno));
-  if (S_ISREG(st.st_mode) && static_cast<unsigned long long>(st.st_size) > max_bytes) too_large(path, max_bytes, what);
+  fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | extra_flags);
+  if (fd_ < 0) throw InputError(path + ": cannot open " + what + ": " + std::strerror(errno));
+  const auto fail = [&](const std::string& why) {
+    ::close(fd_);
+    throw InputError(path + ": " + why);
+  };
+  if (::fstat(fd_, &st_) != 0) fail("cannot stat " + what + ": " + std::strerror(errno));
+  if (S_ISDIR(st_.st_mode)) fail("is a directory, not a " + what);
+  if (const int flags = ::fcntl(fd_, F_GETFL); flags < 0 || ::fcntl(fd_, F_SETFL, flags & ~O_NONBLOCK) < 0)
+    fail("cannot read " + what + ": " + std::strerror(errno));
+}
+
+InputFile::~InputFile() { ::close(fd_); }
+
+std::string InputFile::read_all(std::size_t max_bytes, FileKind kind) {
+  if (S_ISREG(st_.st_mode) && static_cast<unsigned long long>(st_.st_size) > max_bytes) too_large(path_, max_bytes, what_);
   std::string out;
   char buf[64 * 1024];
   for (;;) {
-    const ssize_t n = ::read(f.fd, buf, sizeof buf);
+    const ssize_t n = ::read(fd_, buf, sizeof buf);
     if (n < 0) {
       if (errno == EINTR) continue;
-      throw InputError(path + ": cannot read " + what + ": " + std::strerror(errno));
+      throw InputError(path_ + ": cannot read " + what_ + ": " + std::strerror(errno));
     }
     if (n == 0) {
-      if (out.empty() && S_ISFIFO(st.st_mode)) throw InputError(path + ": a named pipe with no program writing to it, not a " + what);
+      if (out.empty() && S_ISFIFO(st_.st_mode)) throw InputError(path_ + ": a named pipe with no program writing to it, not a " + what_);
       break;
     }
     const auto got = static_cast<std::size_t>(n);
@@ -83,21 +94,25 @@ std::string read_input_file(const std::string& path, std::size_t max_bytes, cons
       const void* nul = std::memchr(buf, '\0', got);
       if (out.empty())
         if (const std::string wide = utf16_or_32(buf, got, nul != nullptr); !wide.empty())
-          throw InputError(path + ": " + wide + ", expected a " + what + " in UTF-8 (or ASCII): save it as UTF-8");
+          throw InputError(path_ + ": " + wide + ", expected a " + what_ + " in UTF-8 (or ASCII): save it as UTF-8");
       if (nul)
-        throw InputError(path + ": not a text file (NUL byte at offset " +
+        throw InputError(path_ + ": not a text file (NUL byte at offset " +
                          std::to_string(out.size() + static_cast<std::size_t>(static_cast<const char*>(nul) - buf)) +
-                         "), expected a " + what);
+                         "), expected a " + what_);
     }
-    if (got > max_bytes - out.size()) too_large(path, max_bytes, what);
+    if (got > max_bytes - out.size()) too_large(path_, max_bytes, what_);
     out.append(buf, got);
   }
   // A Latin-1 or CP1252 file ("°C" as the one byte 0xB0) passed here, and its bytes went on into
   // names and messages. A UTF-8 byte order mark is UTF-8 and passes (the readers skip it).
   if (kind == FileKind::Text)
     if (const std::string problem = utf8_problem(out); !problem.empty())
-      throw InputError(path + ": " + problem + ", expected a " + what + " in UTF-8 (or ASCII): save it as UTF-8");
+      throw InputError(path_ + ": " + problem + ", expected a " + what_ + " in UTF-8 (or ASCII): save it as UTF-8");
   return out;
+}
+
+std::string read_input_file(const std::string& path, std::size_t max_bytes, const std::string& what, FileKind kind) {
+  return InputFile(path, what).read_all(max_bytes, kind);
 }
 
 }  // namespace btsm::io

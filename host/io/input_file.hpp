@@ -2,6 +2,8 @@
 // Size-capped reads of input files. Every file the tool takes is read through here, so a device
 // (/dev/zero, /dev/urandom), a pipe that never ends or a file far beyond any sensible size fails
 // fast with the limit in the message instead of growing memory without bound.
+#include <sys/stat.h>
+
 #include <cstddef>
 #include <string>
 
@@ -16,6 +18,31 @@ enum class FileKind { Text, Binary };
 
 // "16 MiB", "4 KiB", "464 bytes".
 std::string size_text(std::size_t bytes);
+
+// What a file of `mode` is when it is no regular file: "a directory", "a named pipe", "a socket",
+// "a character device", "a block device", "a symbolic link"; "" for a regular file.
+std::string file_type_name(mode_t mode);
+
+// An input opened for reading without waiting: opening a named pipe no program writes to waited
+// for a writer for ever (so opened, it reads as empty at once; reads block again once it is open).
+// Throws InputError naming `path` and `what` when it cannot be opened or is a directory.
+// `extra_flags` go to open(2): O_NOFOLLOW for a key file. For a reader that checks what the open
+// file is (a key file: a regular file, mode 0600) before it reads; the others use read_input_file.
+class InputFile {
+ public:
+  InputFile(const std::string& path, const std::string& what, int extra_flags = 0);
+  ~InputFile();
+  InputFile(const InputFile&) = delete;
+  InputFile& operator=(const InputFile&) = delete;
+  const struct stat& status() const { return st_; }  // of the open file: no window between a check and the read
+  // The whole content, as read_input_file below.
+  std::string read_all(std::size_t max_bytes, FileKind kind);
+
+ private:
+  std::string path_, what_;
+  int fd_ = -1;
+  struct stat st_ {};
+};
 
 // Reads the whole file. Throws InputError naming `path` and `what` ("network JSON", "recording")
 // when it cannot be opened, is a directory, holds more than max_bytes (regular files are refused

@@ -4,6 +4,7 @@
 #include "host/io/hex.hpp"
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
+#include "host/io/output_file.hpp"
 
 #include <fcntl.h>
 #include <sys/random.h>
@@ -78,76 +79,61 @@ bool KeyStore::exists(uint32_t id) const {
   return fs::exists(path_for(id), ec);
 }
 
+namespace {
+
+// Before the file is opened, what lstat says: no key at all, or a symbolic link (which O_NOFOLLOW
+// would refuse as "Too many levels of symbolic links").
+void refuse_missing_or_linked_key(uint32_t id, const std::string& path) {
+  struct stat st {};
+  if (::lstat(path.c_str(), &st) != 0 && errno == ENOENT)
+    throw io::InputError("no key for device " + device_id_text(id) + " (" + path + "): create one with `btsm keys generate " +
+                         device_id_text(id) + "` or `btsm keys import " + device_id_text(id) + " HEX`");
+  if (S_ISLNK(st.st_mode)) throw io::InputError("key file " + path + " is a symbolic link, not a regular file");
+}
+
+}  // namespace
+
 DeviceKey KeyStore::load(uint32_t id) const {
   const std::string path = path_for(id);
-  // Open first, then fstat the open file: no window between the check and the read.
-  const int fd = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NOFOLLOW);
-  if (fd < 0) {
-    if (errno == ENOENT)
-      throw io::InputError("no key for device " + device_id_text(id) + " (" + path +
-                           "): create one with `btsm keys generate " + device_id_text(id) +
-                           "` or `btsm keys import " + device_id_text(id) + " HEX`");
-    throw io::InputError("cannot open key file " + path + ": " + std::strerror(errno));
-  }
-  struct stat st {};
-  ::fstat(fd, &st);
-  if (!S_ISREG(st.st_mode)) {
-    ::close(fd);
-    throw io::InputError("key file " + path + " is not a regular file");
-  }
+  refuse_missing_or_linked_key(id, path);
+  // Opened without waiting (a named pipe in the key store hung `keys list` for ever), then the
+  // open file is checked: no window between the check and the read.
+  io::InputFile file(path, "key file", O_NOFOLLOW);
+  const struct stat& st = file.status();
+  if (!S_ISREG(st.st_mode)) throw io::InputError("key file " + path + " is " + io::file_type_name(st.st_mode) + ", not a regular file");
   if ((st.st_mode & 077) != 0) {
-    ::close(fd);
     char mode[8];
     std::snprintf(mode, sizeof mode, "%04o", st.st_mode & 07777);
     throw io::InputError("key file " + path + " has permissions " + mode +
                          ", readable or writable by others: refusing to use it (run `chmod 600 " + path +
                          "` if the key was not exposed, otherwise generate a new key and reflash)");
   }
-  // The whole file, up to one byte past the cap: a key file holds 64 hex digits and a newline;
-  // anything after them is an error, not ignored.
-  std::string text(kMaxKeyFileBytes + 1, '\0');
-  size_t got = 0;
-  while (got < text.size()) {
-    const ssize_t n = ::read(fd, text.data() + got, text.size() - got);
-    if (n < 0 && errno == EINTR) continue;
-    if (n < 0) {
-      const int err = errno;
-      ::close(fd);
-      throw io::InputError("cannot read key file " + path + ": " + std::strerror(err));
-    }
-    if (n == 0) break;
-    got += static_cast<size_t>(n);
-  }
-  ::close(fd);
-  if (got > kMaxKeyFileBytes)
-    throw io::InputError("key file " + path + ": larger than " + io::size_text(kMaxKeyFileBytes) + ", the limit for a key file");
-  text.resize(got);
-  return key_from_file_content(text, path);
+  // A key file holds 64 hex digits and a newline; anything after them is an error, not ignored.
+  return key_from_file_content(file.read_all(kMaxKeyFileBytes, io::FileKind::Binary), path);
 }
 
 void KeyStore::save(uint32_t id, const DeviceKey& key, bool overwrite) const {
+  const std::string path = path_for(id);
+  // A named pipe there blocked `keys generate --force` for ever: refused as bad input, at once.
+  if (const std::string kind = io::special_file_kind(path); !kind.empty())
+    throw io::InputError("key file " + path + " is " + kind + ", not a file to write the key to");
   std::error_code ec;
   if (!fs::exists(dir_, ec)) {
     fs::create_directories(dir_, ec);
     if (ec) throw std::runtime_error("cannot create key directory " + dir_ + ": " + ec.message());
     ::chmod(dir_.c_str(), 0700);
   }
-  const std::string path = path_for(id);
-  const int flags = O_WRONLY | O_CREAT | O_CLOEXEC | O_NOFOLLOW | (overwrite ? O_TRUNC : O_EXCL);
-  const int fd = ::open(path.c_str(), flags, 0600);
-  if (fd < 0) {
-    if (errno == EEXIST)
-      throw std::runtime_error("key file " + path + " already exists: refusing to overwrite a device key "
-                               "(a module flashed with it would no longer accept models)");
-    throw std::runtime_error("cannot write key file " + path + ": " + std::strerror(errno));
-  }
-  ::fchmod(fd, 0600);
   const std::string text = key_to_hex(key) + "\n";
-  const ssize_t n = ::write(fd, text.data(), text.size());
-  const int err = errno;
-  ::close(fd);
-  if (n != static_cast<ssize_t>(text.size()))
-    throw std::runtime_error("cannot write key file " + path + ": " + std::strerror(err));
+  // Replaced beside and renamed over it: a failed write leaves the old key as it was.
+  if (overwrite) return io::write_output_file(path, text, "key", io::FileAccess::Private);
+  try {
+    io::write_new_output_file(path, text, "key", io::FileAccess::Private);
+  } catch (const std::runtime_error&) {
+    struct stat st {};
+    if (::lstat(path.c_str(), &st) != 0) throw;  // not there: the write itself failed
+    throw std::runtime_error("key file " + path + " already exists: refusing to overwrite a device key "
+                             "(a module flashed with it would no longer accept models)");
+  }
 }
 
 DeviceKey KeyStore::generate() {

@@ -5,6 +5,7 @@
 #include "host/io/hex.hpp"
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
+#include "host/io/output_file.hpp"
 
 #include <fcntl.h>
 #include <spawn.h>
@@ -185,21 +186,7 @@ int run_command(const std::vector<std::string>& argv) {
 }
 
 void write_private_file(const std::string& path, const std::string& text) {
-  const int fd = ::open(path.c_str(), O_WRONLY | O_CREAT | O_TRUNC | O_CLOEXEC, 0600);
-  if (fd < 0) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
-  ::fchmod(fd, 0600);
-  size_t done = 0;
-  while (done < text.size()) {
-    const ssize_t n = ::write(fd, text.data() + done, text.size() - done);
-    if (n < 0) {
-      if (errno == EINTR) continue;
-      const int err = errno;
-      ::close(fd);
-      throw std::runtime_error("cannot write " + path + ": " + std::strerror(err));
-    }
-    done += static_cast<size_t>(n);
-  }
-  if (::close(fd) != 0) throw std::runtime_error("cannot write " + path + ": " + std::strerror(errno));
+  io::write_output_file(path, text, "patched firmware image", io::FileAccess::Private);
 }
 
 }  // namespace btsm::link

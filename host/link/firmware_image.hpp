@@ -53,7 +53,8 @@ std::vector<std::string> avrdude_command(const std::string& port, const std::str
 // Runs a command, inheriting stdio; returns its exit status. Throws if it cannot be started.
 int run_command(const std::vector<std::string>& argv);
 
-// Writes text to path with mode 0600 (the patched image contains the device key).
+// Writes text to path with mode 0600 (the patched image contains the device key), through
+// io::write_output_file: a failed write leaves an image that was there as it was.
 void write_private_file(const std::string& path, const std::string& text);
 
 }  // namespace btsm::link

@@ -1,11 +1,16 @@
 #include "host/link/recorder.hpp"
 
+#include "host/io/output_file.hpp"
 #include "host/thermal/recording.hpp"
 
 #include <fmt/format.h>
 
+#include <cerrno>
 #include <cmath>
-#include <fstream>
+#include <cstdio>
+#include <cstring>
+#include <sstream>
+#include <stdexcept>
 #include <thread>
 
 namespace btsm::link {
@@ -132,6 +137,14 @@ class SensorFaultEpisodes {
   std::vector<thermal::SensorFaultEpisode> done_;
 };
 
+// The summary lines after the rows, through the output helper as the rows were: the file is
+// reopened by its name, and whatever stands there now is written only if it is a regular file.
+void append_to_recording(const std::string& path, const std::string& text) {
+  std::FILE* f = io::open_output_stream(path, "recording", true);
+  const bool written = std::fputs(text.c_str(), f) >= 0;
+  if (std::fclose(f) != 0 || !written) throw std::runtime_error("cannot append the summary to " + path + ": " + std::strerror(errno));
+}
+
 }  // namespace
 
 RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOptions& opts) {
@@ -199,7 +212,7 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
     // RecordingWriter takes metadata only before the first row, and gaps are only known as they
     // happen, so the summary goes after the rows as comment lines (the reader accepts '#' lines
     // anywhere).
-    std::ofstream tail(opts.out_path, std::ios::app);
+    std::ostringstream tail;
     tail << "# samples: " << sum.rows << "\n";
     tail << "# lost_samples: " << sum.lost << "\n";
     tail << "# module_restarts: " << sum.restarts << "\n";
@@ -211,8 +224,7 @@ RecordSummary record(Session& session, const ModuleIdentity& id, const RecordOpt
     for (const auto& f : sum.sensor_faults)
       tail << "# " << thermal::kSensorFaultKey << ": " << thermal::format_sensor_fault(f) << "\n";
     tail << "# stop_reason: " << sum.stop_reason << "\n";
-    tail.flush();
-    if (!tail) throw std::runtime_error("cannot append the summary to " + opts.out_path);
+    append_to_recording(opts.out_path, tail.str());
   };
   try {
     for (;;) {

@@ -1,6 +1,7 @@
 #include "host/report/html_report.hpp"
 
-#include <fstream>
+#include "host/io/output_file.hpp"
+
 #include <stdexcept>
 
 namespace btsm::report {
@@ -54,11 +55,6 @@ std::string HtmlReport::html() const {
          "</head><body>\n<h1>" + html_escape(title_) + "</h1>\n" + body_ + "</body></html>\n";
 }
 
-void HtmlReport::write(const std::string& path) const {
-  std::ofstream f(path);
-  if (!f) throw std::runtime_error("cannot write report page " + path);
-  f << html();
-  if (!f) throw std::runtime_error("error while writing report page " + path);
-}
+void HtmlReport::write(const std::string& path) const { io::write_output_file(path, html(), "report page"); }
 
 }  // namespace btsm::report

@@ -1,5 +1,6 @@
 #include "host/report/plot.hpp"
 
+#include "host/io/output_file.hpp"
 #include "host/report/decimate.hpp"
 #include "host/report/plot_layout.hpp"
 
@@ -8,7 +9,6 @@
 
 #include <algorithm>
 #include <cmath>
-#include <fstream>
 #include <stdexcept>
 
 namespace btsm::report {
@@ -243,12 +243,16 @@ void save_figure(const std::vector<Plot>& panels, const std::string& stem, const
   if (panels.empty()) throw std::runtime_error("plot " + stem + ": nothing to draw");
   const FigureLayout L = layout_figure(panels, o);
 
+  // Both files go through the output helper (beside and renamed, never a named pipe: cairo's own
+  // file writer and an ofstream blocked for ever on one, after the whole run).
   const std::string png = stem + ".png";
   cairo_surface_t* img = cairo_image_surface_create(CAIRO_FORMAT_RGB24, L.width, L.height);
   render(panels, L, img, Density{0.25, 0.25});
-  const cairo_status_t st = cairo_surface_write_to_png(img, png.c_str());
+  std::string png_bytes;
+  const cairo_status_t st = cairo_surface_write_to_png_stream(img, append_to_string, &png_bytes);
   cairo_surface_destroy(img);
-  if (st != CAIRO_STATUS_SUCCESS) throw std::runtime_error("cannot write plot " + png + ": " + cairo_status_to_string(st));
+  if (st != CAIRO_STATUS_SUCCESS) throw std::runtime_error("cannot draw plot " + png + ": " + cairo_status_to_string(st));
+  io::write_output_file(png, png_bytes, "plot");
 
   // One canvas pixel per decimation cell looks identical to every sample; coarser only if the
   // file would still exceed its bound (many dense panels).
@@ -258,9 +262,7 @@ void save_figure(const std::vector<Plot>& panels, const std::string& stem, const
     bytes = render_svg(panels, L, Density{cell, cell}, svg);
     if (bytes.size() <= o.svg_max_bytes) break;
   }
-  std::ofstream f(svg, std::ios::binary);
-  f.write(bytes.data(), static_cast<std::streamsize>(bytes.size()));
-  if (!f) throw std::runtime_error("cannot write plot " + svg);
+  io::write_output_file(svg, bytes, "plot");
 }
 
 void save_plot(const Plot& p, const std::string& stem, int width, int height) {

@@ -198,6 +198,13 @@ std::string format_table(const LoopResult& r) {
   return o.str();
 }
 
+std::vector<io::OutputName> report_files() {
+  std::vector<io::OutputName> files{{"residual_result.json", "residual result"}, {"residual_table.txt", "residual table"}};
+  for (const char* stem : {"residual_model", "residual_residuals", "residual_heat_trace"})
+    for (const char* ext : {".png", ".svg"}) files.push_back({std::string(stem) + ext, "plot"});
+  return files;
+}
+
 void write_report(const LoopResult& r, const std::vector<thermal::Recording>& check, const std::string& dir,
                   const thermal::Recording* trace_recording) {
   std::error_code ec;

@@ -1,5 +1,6 @@
 #pragma once
 // Output of the residual loop: a plain-text table, JSON, and plots into a report directory.
+#include "host/io/output_file.hpp"
 #include "host/residual/residual_loop.hpp"
 
 #include <nlohmann/json.hpp>
@@ -23,5 +24,8 @@ nlohmann::json to_json(const LoopResult& r);
 // Throws std::runtime_error on I/O errors.
 void write_report(const LoopResult& r, const std::vector<thermal::Recording>& check, const std::string& dir,
                   const thermal::Recording* trace_recording = nullptr);
+
+// The files write_report may write into its directory, for the check of the place before the loop.
+std::vector<io::OutputName> report_files();
 
 }  // namespace btsm::residual

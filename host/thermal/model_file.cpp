@@ -127,8 +127,8 @@ FittedModel load_model(const std::string& path) {
   return model_from_json(io::read_json_file(path, kMaxModelBytes, "model JSON"), path);
 }
 
-void save_json(const std::string& path, const nlohmann::json& j) {
-  io::write_output_file(path, j.dump(2) + "\n", "JSON");
-}
+std::string json_file_text(const nlohmann::json& j) { return j.dump(2) + "\n"; }
+
+void save_json(const std::string& path, const nlohmann::json& j) { io::write_output_file(path, json_file_text(j), "JSON"); }
 
 }  // namespace btsm::thermal

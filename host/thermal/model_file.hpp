@@ -46,6 +46,9 @@ nlohmann::json channel_map_json(const Network& net, const std::vector<Recording>
 // for an unreadable file) naming the source and the problems.
 FittedModel model_from_json(const nlohmann::json& j, const std::string& source);
 FittedModel load_model(const std::string& path);
+// A JSON file's text as the tool writes it (two-space indent, final newline), and the file written
+// through io::write_output_file.
+std::string json_file_text(const nlohmann::json& j);
 void save_json(const std::string& path, const nlohmann::json& j);
 
 }  // namespace btsm::thermal

@@ -5,6 +5,7 @@
 
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
+#include "host/io/output_file.hpp"
 #include "host/io/utf8_text.hpp"
 
 #include <cstdio>
@@ -336,8 +337,9 @@ void RecordingWriter::open(const std::string& path, const std::vector<std::strin
   for (const auto& c : channels)
     if (c.empty() || c.find(',') != std::string::npos || c.find('\n') != std::string::npos)
       throw std::invalid_argument(path + ": bad channel name '" + c + "'");
-  file_ = std::fopen(path.c_str(), "w");
-  if (!file_) throw std::runtime_error(path + ": cannot create recording");
+  // Through the output helper: fopen blocked for ever on a named pipe no program reads (record held
+  // the module's link meanwhile), and its failure named no reason.
+  file_ = io::open_output_stream(path, "recording");
   path_ = path;
   channels_ = channels;
   decimals_ = temp_decimals;

@@ -4,9 +4,9 @@
 #include "common/device_key.hpp"
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
+#include "host/io/output_file.hpp"
 
 #include <filesystem>
-#include <fstream>
 #include <stdexcept>
 
 namespace btsm::sim {
@@ -129,14 +129,7 @@ std::string avr_elf_problem(const std::string& path) {
 
 void save_eeprom_image(const std::string& path, const std::vector<uint8_t>& image) {
   if (path.empty()) return;
-  const std::string tmp = path + ".tmp";
-  {
-    std::ofstream out(tmp, std::ios::binary | std::ios::trunc);
-    out.write(reinterpret_cast<const char*>(image.data()), std::streamsize(image.size()));
-    if (!out) throw std::runtime_error("cannot write EEPROM image " + tmp);
-  }
-  if (std::rename(tmp.c_str(), path.c_str()) != 0)
-    throw std::runtime_error("cannot replace EEPROM image " + path);
+  io::write_output_file(path, std::string_view(reinterpret_cast<const char*>(image.data()), image.size()), "module EEPROM image");
 }
 
 }  // namespace btsm::sim

@@ -1,6 +1,7 @@
 #include "host/sim/suite/generate.hpp"
 
 #include "common/wire_messages.hpp"
+#include "host/io/output_file.hpp"
 #include "host/link/recorder.hpp"
 #include "host/link/session.hpp"
 #include "host/sim/suite/module_transport.hpp"
@@ -60,7 +61,7 @@ void merge_declared_columns(const std::string& path, const HiddenEffects& fx, do
     out << "\n";
   }
   in.close();
-  std::ofstream(path) << out.str();
+  io::write_output_file(path, out.str(), "recording");
 }
 
 // Sum of squared (recorded - true) over T1, T2, T3 (and T5 when recorded), and the cell count.
@@ -155,7 +156,7 @@ GeneratedCase generate_case(const SuiteCase& c, const std::string& dir, const Ge
   g.noise_floor_fit_k = n_fit ? std::sqrt(ss_fit / double(n_fit)) : 0.0;
   g.noise_floor_check_k = n_check ? std::sqrt(ss_check / double(n_check)) : 0.0;
   g.wall_s = std::chrono::duration<double>(std::chrono::steady_clock::now() - w0).count();
-  std::ofstream((fs::path(dir) / "truth.json").string()) << generated_json(c, g).dump(1) << "\n";
+  io::write_output_file((fs::path(dir) / "truth.json").string(), generated_json(c, g).dump(1) + "\n", "case truth");
   return g;
 }
 

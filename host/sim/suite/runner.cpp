@@ -47,6 +47,10 @@ struct Child {
 
 // Starts argv with stdout -> out_path, stderr -> err_path.
 pid_t spawn(const std::vector<std::string>& argv, const std::string& out_path, const std::string& err_path) {
+  // The child opens them before it runs, and posix_spawn waits for that: a named pipe there
+  // blocked the suite for ever.
+  io::refuse_output_file_that_cannot_be_made(out_path, "case file", "answer of btsm residual");
+  io::refuse_output_file_that_cannot_be_made(err_path, "case file", "log of btsm residual");
   posix_spawn_file_actions_t fa;
   posix_spawn_file_actions_init(&fa);
   posix_spawn_file_actions_addopen(&fa, STDOUT_FILENO, out_path.c_str(), O_WRONLY | O_CREAT | O_TRUNC, 0644);

@@ -49,10 +49,13 @@ CliResult run_cli(const std::string& cli, const std::string& home, const std::st
   return r;
 }
 
-CliResult run_btsm(const ScratchDir& dir, const std::string& args, int timeout_s) {
+std::string btsm_cli() {
   const char* override_cli = std::getenv("BTSM_TEST_CLI");
-  const std::string cli = override_cli != nullptr && override_cli[0] != '\0' ? override_cli : BTSM_CLI;
-  return run_cli(cli, dir.path, args, timeout_s, dir.path);
+  return override_cli != nullptr && override_cli[0] != '\0' ? override_cli : BTSM_CLI;
+}
+
+CliResult run_btsm(const ScratchDir& dir, const std::string& args, int timeout_s) {
+  return run_cli(btsm_cli(), dir.path, args, timeout_s, dir.path);
 }
 
 void write_text(const std::string& path, const std::string& text) {

@@ -28,8 +28,10 @@ inline constexpr const char* kCliStderr = "stderr.txt";
 CliResult run_cli(const std::string& cli, const std::string& home, const std::string& args, int timeout_s,
                   const std::string& workdir = "");
 
-// `btsm ARGS` in `dir` (HOME there too), killed after timeout_s. The binary is $BTSM_TEST_CLI, else
-// the one this build made.
+// The `btsm` the tests run: $BTSM_TEST_CLI, else the one this build made.
+std::string btsm_cli();
+
+// `btsm ARGS` in `dir` (HOME there too), killed after timeout_s.
 CliResult run_btsm(const ScratchDir& dir, const std::string& args, int timeout_s = 60);
 
 void write_text(const std::string& path, const std::string& text);

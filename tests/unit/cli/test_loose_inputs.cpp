@@ -209,7 +209,7 @@ TEST(LooseInputs, EmptyValuesAndOutputsThatCannotBeMadeAreRefusedFirst) {
   expect_refusals(d, {{"sim-module --pty p --profile 1m@6000 --truth-out ''", "--truth-out: an empty value"},
                       {"flash-firmware --device-id 0000de71 --out '' --dry-run", "--out: an empty value"},
                       {"fit '' --preset spindle4 --out m.json", "File does not exist"},
-                      {"record --port /nonexistent/tty --out " + d.path + " --samples 2", "is a directory"},
+                      {"record --port /nonexistent/tty --out " + d.path + " --samples 2", "a directory, not a file to write the recording to"},
                       {"record --port /nonexistent/tty --out nodir/x.csv --samples 2", "its directory nodir does not exist"},
                       {"effect-suite --list --timeout 0", "--timeout"},
                       {"record --port /nonexistent/tty --out r.csv --samples ''", "--samples: an empty value"},

@@ -48,13 +48,19 @@ TEST(Outputs, AnOutputNamingAnInputIsRefusedAndTheInputKept) {
   }
 }
 
-// A blob written to a full disk was reported "wrote /dev/full (464 bytes)" with exit 0.
+// A blob written to a full disk was reported "wrote /dev/full (464 bytes)" with exit 0. /dev/full
+// is refused as an output place now (a device, exit 2 before the work: test_output_places.cpp);
+// the full disk is a file size limit here (ulimit -f 8: 4 KiB, the reduced JSON is ~11 KiB, the
+// report on stdout and stderr less), with SIGXFSZ ignored so the write fails with EFBIG.
 TEST(Outputs, AWriteErrorFailsTheCommand) {
   ScratchDir d;
   write_text(d.file("model.json"), spindle4_model_json());
-  const CliResult r = run_btsm(d, "reduce model.json --speeds 4000,6000 --out r.json --blob /dev/full --force");
+  const std::string limited = "sh -c 'trap \"\" XFSZ; ulimit -f 8; exec \"$0\" \"$@\"' " + btsm_cli();
+  const CliResult r = run_cli(limited, d.path, "reduce model.json --speeds 4000,6000 --out r.json --blob m.bin --force", 300, d.path);
   EXPECT_EQ(r.code, 1) << r.err;
-  EXPECT_TRUE(mentions(r, "/dev/full") && mentions(r, "No space left")) << r.err;
+  EXPECT_TRUE(mentions(r, "r.json: cannot write the JSON: File too large")) << r.err;
+  EXPECT_FALSE(mentions(r, "wrote")) << r.err;
+  EXPECT_FALSE(file_exists(d.file("r.json")) || file_exists(d.file("m.bin")));  // neither of the pair
 }
 
 // The library calls behind those: the replace is all or nothing, the same file is recognised
