@@ -17,6 +17,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -339,6 +340,13 @@ std::vector<std::string> channel_map(const Network& net, const json& model_json,
       } else {
         const int n = net.node_index(node);
         if (n < 0) throw CommandError(kExitUsage, "model JSON: channel_map names node '" + node + "', not in the network");
+        // Refused as --channels refuses it: the blob would check the second probe against this
+        // node's model (a hand-edited ch5 = rear_bearing ALARMed on the spare probe's readings).
+        for (int k = 0; k < 5; ++k)
+          if (o.channel_node[static_cast<std::size_t>(k)] == n)
+            throw CommandError(kExitUsage, "model JSON: channel_map puts node '" + node + "' on channel " + std::to_string(std::min(k, ch) + 1) +
+                                               " and channel " + std::to_string(std::max(k, ch) + 1) +
+                                               ": one probe per node; say which with --channels");
         o.channel_node[static_cast<std::size_t>(ch)] = n;
       }
     }

@@ -1,5 +1,6 @@
 // What a model, a network or a recording says about itself, held to where it is read (hostile-input
-// probe 7): a node cut off from the ambient (F7).
+// probe 7): a node cut off from the ambient (F7) and a hand-edited channel map with one node on two
+// channels (F10).
 #include "cli_run.hpp"
 #include "model_fixture.hpp"
 #include "refusals.hpp"
@@ -26,6 +27,22 @@ TEST(NetworkPaths, ACutOffNodeIsNamedBeforeTheFit) {
   EXPECT_TRUE(mentions(r.err, "isolated.json: network '") && mentions(r.err, "node 'x' has no link at all")) << r.err;
   EXPECT_FALSE(mentions(r.err, "stage")) << "refused before the fit started\n" << r.err;
   EXPECT_FALSE(file_exists(d.file("m.json")));
+}
+
+// F10: a hand-edited channel map with the rear bearing on ch1 and ch5: reduce wrote a blob that
+// checks probe 5 against the rear bearing's model, while --channels refuses the same map.
+TEST(ChannelMapEdits, OneNodeOnTwoChannelsIsRefusedAsChannelsRefusesIt) {
+  ScratchDir d;
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  m["channel_map"][4]["node"] = "rear_bearing";
+  write_text(d.file("twice.json"), m.dump(2));
+  expect_refusals(d, {{"reduce twice.json --speeds 4000,6000 --force --out r.json --blob m.bin",
+                       "channel_map puts node 'rear_bearing' on channel 1 and channel 5: one probe per node"},
+                      {"reduce twice.json --speeds 4000,6000 --force --out r.json --channels rear_bearing,housing,front_bearing,ambient,"
+                       "rear_bearing",
+                       "node 'rear_bearing' on channel 1 and channel 5: one probe per node"}});
+  EXPECT_FALSE(file_exists(d.file("r.json")));
+  EXPECT_FALSE(file_exists(d.file("m.bin")));
 }
 
 }  // namespace
