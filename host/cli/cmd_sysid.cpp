@@ -186,6 +186,9 @@ void run_validate(const ValidateArgs& a) {
       std::cerr << fmt::format("validate: WARNING: {}: the initial state comes from {} of its {} rows: most of the score is on "
                                "rows it was fitted to\n",
                                io::printable(rec.source), a.initial_rows, rec.rows());
+  for (const auto& rec : recs)
+    for (const auto& w : unsampled_measurement_warnings(net, rec, "its node is not scored"))
+      std::cerr << "validate: WARNING: " << io::printable(w) << "\n";
   if (!a.json_out) std::cout << kNmseConvention << "\n";
   std::set<std::string> plot_stems;
   for (const auto& rec : recs) {

@@ -5,6 +5,7 @@
 #include "declared_columns.hpp"
 #include "recording_metadata.hpp"
 
+#include <algorithm>
 #include <map>
 #include <stdexcept>
 
@@ -25,6 +26,42 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec) {
   }
   check_measurements_not_declared(net, rec);  // a declared boundary/event column is an input, never a node
   return cols;
+}
+
+namespace {
+// The recording has `column` and not one value in it.
+bool never_sampled(const Recording& rec, const std::string& column) {
+  const int c = rec.channel_index(column);
+  return c >= 0 && !rec.temp_c.col(c).array().isFinite().any();
+}
+}  // namespace
+
+std::vector<Measurement> unsampled_measurements(const Network& net, const Recording& rec) {
+  std::vector<Measurement> out;
+  for (const auto& m : net.measurements)
+    if (never_sampled(rec, m.column)) out.push_back(m);
+  return out;
+}
+
+std::vector<std::string> unsampled_measurement_warnings(const Network& net, const Recording& rec, const std::string& consequence) {
+  std::vector<std::string> out;
+  for (const auto& m : unsampled_measurements(net, rec))
+    out.push_back(rec.source + ": column '" + m.column + "' (node '" + net.nodes[static_cast<std::size_t>(m.node)].name +
+                  "') has no value in any row: " + consequence);
+  return out;
+}
+
+void refuse_unsampled_measurements(const Network& net, const std::vector<Recording>& recs) {
+  for (const auto& m : net.measurements) {
+    if (recs.empty() || !std::all_of(recs.begin(), recs.end(), [&](const Recording& r) { return never_sampled(r, m.column); }))
+      continue;
+    std::string files;
+    for (const auto& rec : recs) files += (files.empty() ? "" : ", ") + rec.source;
+    const std::string node = net.nodes[static_cast<std::size_t>(m.node)].name;
+    throw std::invalid_argument("column '" + m.column + "' (measures node '" + node + "') has no value in any row of " + files +
+                                ": the probe read nothing (open or not connected?); give recordings where it reads, or leave "
+                                "the node unmeasured with '--column " + node + "='");
+  }
 }
 
 namespace {

@@ -23,6 +23,18 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec);
 // node and both files) or as remap_measurements() does.
 std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns);
 
+// The measurements of `net` whose column `rec` has but with no value in any row: a probe open or
+// unplugged for the whole recording (every cell empty). Scored or fitted, such a node gives no
+// number ("nan", "--") while its neighbours are worked out as if it had been seen.
+std::vector<Measurement> unsampled_measurements(const Network& net, const Recording& rec);
+// A warning per unsampled measurement, "REC: column 'T1' (node 'rear_bearing') has no value in any
+// row: CONSEQUENCE", for the commands that go on without it (validate, heat).
+std::vector<std::string> unsampled_measurement_warnings(const Network& net, const Recording& rec, const std::string& consequence);
+// Throws std::invalid_argument when a column `net` measures has no value in any row of any of
+// `recs` (a fit "converged" on a node it never saw, and its channel map said the probe measures
+// it), naming the column, its node and the files.
+void refuse_unsampled_measurements(const Network& net, const std::vector<Recording>& recs);
+
 // A model that already says which column measures which node (a fitted model, scored by validate,
 // heat and residual --use-values) against recordings whose channel_roles say where the probes are:
 // a role-named node measured by a column the roles give to another role (or to none) would be

@@ -1,6 +1,6 @@
 // What a model, a network or a recording says about itself, held to where it is read (hostile-input
-// probe 7): a node cut off from the ambient (F7) and a hand-edited channel map with one node on two
-// channels (F10).
+// probe 7): a probe that read nothing (F5), a node cut off from the ambient (F7) and a hand-edited
+// channel map with one node on two channels (F10).
 #include "cli_run.hpp"
 #include "model_fixture.hpp"
 #include "refusals.hpp"
@@ -13,6 +13,27 @@ namespace btsm::test {
 namespace {
 
 bool mentions(const std::string& text, const std::string& s) { return text.find(s) != std::string::npos; }
+
+// F5: a probe open for a whole recording. validate showed its row as "--" without a word, heat
+// printed "residual rms T1: nan K" and fit said "converged" on a node it never saw.
+TEST(UnsampledColumns, ValidateAndHeatSayWhichColumnAndFitRefuses) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(400, [](int, int col, const std::string& text) { return col == 3 ? "" : text; }));
+  const std::string said = "rec.csv: column 'T1' (node 'rear_bearing') has no value in any row";
+  const CliResult v = run_btsm(d, "validate model.json rec.csv");
+  EXPECT_EQ(v.code, 0) << v.err;
+  EXPECT_TRUE(mentions(v.err, "validate: WARNING: " + std::string(said) + ": its node is not scored")) << v.err;
+  const CliResult h = run_btsm(d, "heat model.json rec.csv", 120);
+  EXPECT_EQ(h.code, 0) << h.err;
+  EXPECT_TRUE(mentions(h.err, "heat: WARNING: " + std::string(said) + ": the heat is estimated without that probe")) << h.err;
+  EXPECT_TRUE(mentions(h.out, "residual rms       T1: -- (no value in any row)")) << h.out;
+  EXPECT_FALSE(mentions(h.out, "nan")) << h.out;
+  write_text(d.file("rec2.csv"), "# source: second\n" + recording_csv(300, [](int, int col, const std::string& text) { return col == 3 ? "" : text; }));
+  expect_refusals(d, {{"fit rec.csv rec2.csv --preset spindle4 --sum-c 20478.7 --out m.json",
+                       "column 'T1' (measures node 'rear_bearing') has no value in any row of rec.csv, rec2.csv"}});
+  EXPECT_FALSE(file_exists(d.file("m.json")));
+}
 
 // F7: a node without a path to the ambient was found after the whole fit ("not stable in cooling
 // mode", no node named). Now the network is refused where it is read, before any stage runs.

@@ -142,6 +142,35 @@ TEST(ColumnMap, RecordingsThatDisagreeAreRefusedNamingBoth) {
   EXPECT_NO_THROW(th::map_measurements(net, {a, b}, {"shaft=T5"}));  // told explicitly: fine
 }
 
+th::Network shaft_on_t5() {
+  th::Network net = th::preset_network("spindle4");
+  th::remap_measurements(net, {"shaft=T5"});
+  return net;
+}
+
+// Probe 7 (F5): T5 empty in every row of every recording, mapped by --column shaft=T5, and the fit
+// said "converged" with a channel map that has T5 measure the shaft.
+TEST(ColumnMap, AMeasuredColumnWithNoValueInAnyRecordingIsRefusedByTheFit) {
+  auto rec = [](const std::string& source, const std::string& t5) {
+    return th::parse_recording_csv("time_s,speed_rpm,ambient_c,T1,T2,T3,T5\n0,6000,20,21,22,23,\n5,6000,20,21,22,23," + t5 + "\n", source);
+  };
+  const th::Network net = shaft_on_t5();
+  ASSERT_EQ(th::unsampled_measurements(net, rec("a.csv", "")).size(), 1u);
+  try {
+    th::fit_network(net, {rec("a.csv", ""), rec("b.csv", "")});
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("column 'T5' (measures node 'shaft') has no value in any row of a.csv, b.csv"), std::string::npos)
+        << e.what();
+  }
+  // One value in one recording is a probe that reads (gaps are the fit's to bridge).
+  EXPECT_NO_THROW(th::refuse_unsampled_measurements(net, {rec("a.csv", ""), rec("b.csv", "24")}));
+  EXPECT_TRUE(th::unsampled_measurements(net, rec("b.csv", "24")).empty());
+  const auto said = th::unsampled_measurement_warnings(net, rec("a.csv", ""), "WHAT NOW");
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_EQ(said[0], "a.csv: column 'T5' (node 'shaft') has no value in any row: WHAT NOW");
+}
+
 // What a reader refuses in the metadata, before any command maps a probe: the entry is named.
 TEST(ColumnMap, ContradictoryRoleMetadataIsRefusedWhenRead) {
   auto read = [](const std::string& meta) {
