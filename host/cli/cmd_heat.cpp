@@ -131,7 +131,7 @@ void run_heat(const HeatArgs& a) {
     model = th::load_model_with_parameters(a.model);
     rec = th::read_recording_csv(a.recording);
     if (const std::string gap = th::long_gap_warning(rec); !gap.empty()) std::cerr << "heat: WARNING: " << gap << "\n";
-    th::check_mapping_agrees_with_roles(model.network, {rec}, {},
+    th::check_mapping_agrees_with_roles(model.network, model.channel_map, {rec}, {},
                                         "refit the model with this recording, or correct its channel_roles line");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());

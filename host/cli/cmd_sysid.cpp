@@ -162,7 +162,7 @@ void run_validate(const ValidateArgs& a) {
   const auto recs = read_all(a.recordings);
   const Network& net = model.network;
   try {
-    check_mapping_agrees_with_roles(net, recs, {}, "refit the model with this recording, or correct its channel_roles line");
+    check_mapping_agrees_with_roles(net, model.channel_map, recs, {}, "refit the model with this recording, or correct its channel_roles line");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
@@ -426,7 +426,7 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     // than the model measures them calibrated each channel on another probe (validate and heat refuse it).
     if (a.channels.empty()) {
       try {
-        check_mapping_agrees_with_roles(net, calib, {}, "calibrate on recordings made with the probes where the model was fitted");
+        check_mapping_agrees_with_roles(net, model.channel_map, calib, {}, "calibrate on recordings made with the probes where the model was fitted");
       } catch (const std::invalid_argument& e) {
         throw CommandError(kExitUsage, e.what());
       }
