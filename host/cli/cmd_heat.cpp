@@ -3,6 +3,7 @@
 
 #include "cli_support.hpp"
 #include "host/io/output_file.hpp"
+#include "host/io/utf8_text.hpp"
 #include "host/thermal/column_map.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
@@ -131,11 +132,13 @@ void run_heat(const HeatArgs& a) {
     model = th::load_model_with_parameters(a.model);
     rec = th::read_recording_csv(a.recording);
     if (const std::string gap = th::long_gap_warning(rec); !gap.empty()) std::cerr << "heat: WARNING: " << gap << "\n";
-    th::check_mapping_agrees_with_roles(model.network, {rec}, {},
+    th::check_mapping_agrees_with_roles(model.network, model.channel_map, {rec}, {},
                                         "refit the model with this recording, or correct its channel_roles line");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
+  for (const auto& w : th::unsampled_measurement_warnings(model.network, rec, "the heat is estimated without that probe"))
+    std::cerr << "heat: WARNING: " << io::printable(w) << "\n";
   const std::vector<int> nodes = parse_nodes(model.network, a.nodes);
   th::InverseProblem p;
   try {
@@ -244,7 +247,11 @@ void run_heat(const HeatArgs& a) {
                            r.monte_carlo_evaluations ? fmt::format(" ({} evaluations)", r.monte_carlo_evaluations) : "");
   std::cout << fmt::format("  noise sigma {:.4g} K{}, residual rms {:.4g} K, effective parameters {:.1f}\n", r.noise_sigma_k,
                            r.noise_estimated ? " (estimated from the data)" : "", r.residual_rms_k, r.dof);
-  for (size_t c = 0; c < cols.size(); ++c) std::cout << fmt::format("  residual rms {:>8}: {:.4g} K\n", cols[c], r.residual_rms_per_channel_k(c));
+  // A column with no value in any row has no residual (warned about above): "--", never "nan".
+  for (size_t c = 0; c < cols.size(); ++c)
+    std::cout << (std::isfinite(r.residual_rms_per_channel_k(c))
+                      ? fmt::format("  residual rms {:>8}: {:.4g} K\n", cols[c], r.residual_rms_per_channel_k(c))
+                      : fmt::format("  residual rms {:>8}: -- (no value in any row)\n", cols[c]));
   std::cout << fmt::format("  {:<16} {:>10} {:>10} {:>10} {:>12}\n", "node", "mean [W]", "min [W]", "max [W]", "mean 1σ [W]");
   for (int s = 0; s < m; ++s)
     std::cout << fmt::format("  {:<16} {:>10.3f} {:>10.3f} {:>10.3f} {:>12.3f}\n", model.network.nodes[p.source_nodes[s]].name,

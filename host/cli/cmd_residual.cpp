@@ -93,7 +93,7 @@ void run_residual(ResidualArgs& a) {
   try {
     if (a.use_values) {
       // a fitted model says itself which column measures which node; only --column changes that
-      th::check_mapping_agrees_with_roles(model.network, all, a.columns,
+      th::check_mapping_agrees_with_roles(model.network, model.channel_map, all, a.columns,
                                           "say which with --column NODE=COLUMN, or refit the model with these recordings");
       th::remap_measurements(model.network, a.columns);
       std::string said;

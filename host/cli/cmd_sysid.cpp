@@ -17,6 +17,7 @@
 
 #include <fmt/core.h>
 
+#include <algorithm>
 #include <array>
 #include <cmath>
 #include <filesystem>
@@ -185,7 +186,7 @@ void run_validate(const ValidateArgs& a) {
   const auto recs = read_all(a.recordings);
   const Network& net = model.network;
   try {
-    check_mapping_agrees_with_roles(net, recs, {}, "refit the model with this recording, or correct its channel_roles line");
+    check_mapping_agrees_with_roles(net, model.channel_map, recs, {}, "refit the model with this recording, or correct its channel_roles line");
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());
   }
@@ -209,6 +210,9 @@ void run_validate(const ValidateArgs& a) {
       std::cerr << fmt::format("validate: WARNING: {}: the initial state comes from {} of its {} rows: most of the score is on "
                                "rows it was fitted to\n",
                                io::printable(rec.source), a.initial_rows, rec.rows());
+  for (const auto& rec : recs)
+    for (const auto& w : unsampled_measurement_warnings(net, rec, "its node is not scored"))
+      std::cerr << "validate: WARNING: " << io::printable(w) << "\n";
   if (!a.json_out) std::cout << kNmseConvention << "\n";
   const std::vector<std::string> stems = plot_stems(a.recordings, a.plots);
   for (std::size_t i = 0; i < recs.size(); ++i) {
@@ -364,6 +368,13 @@ std::vector<std::string> channel_map(const Network& net, const json& model_json,
       } else {
         const int n = net.node_index(node);
         if (n < 0) throw CommandError(kExitUsage, "model JSON: channel_map names node '" + node + "', not in the network");
+        // Refused as --channels refuses it: the blob would check the second probe against this
+        // node's model (a hand-edited ch5 = rear_bearing ALARMed on the spare probe's readings).
+        for (int k = 0; k < 5; ++k)
+          if (o.channel_node[static_cast<std::size_t>(k)] == n)
+            throw CommandError(kExitUsage, "model JSON: channel_map puts node '" + node + "' on channel " + std::to_string(std::min(k, ch) + 1) +
+                                               " and channel " + std::to_string(std::max(k, ch) + 1) +
+                                               ": one probe per node; say which with --channels");
         o.channel_node[static_cast<std::size_t>(ch)] = n;
       }
     }
@@ -443,7 +454,7 @@ void run_reduce(const ReduceArgs& a, const std::vector<std::string>& explicit_de
     // than the model measures them calibrated each channel on another probe (validate and heat refuse it).
     if (a.channels.empty()) {
       try {
-        check_mapping_agrees_with_roles(net, calib, {}, "calibrate on recordings made with the probes where the model was fitted");
+        check_mapping_agrees_with_roles(net, model.channel_map, calib, {}, "calibrate on recordings made with the probes where the model was fitted");
       } catch (const std::invalid_argument& e) {
         throw CommandError(kExitUsage, e.what());
       }

@@ -5,6 +5,7 @@
 #include "declared_columns.hpp"
 #include "recording_metadata.hpp"
 
+#include <algorithm>
 #include <map>
 #include <stdexcept>
 
@@ -25,6 +26,42 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec) {
   }
   check_measurements_not_declared(net, rec);  // a declared boundary/event column is an input, never a node
   return cols;
+}
+
+namespace {
+// The recording has `column` and not one value in it.
+bool never_sampled(const Recording& rec, const std::string& column) {
+  const int c = rec.channel_index(column);
+  return c >= 0 && !rec.temp_c.col(c).array().isFinite().any();
+}
+}  // namespace
+
+std::vector<Measurement> unsampled_measurements(const Network& net, const Recording& rec) {
+  std::vector<Measurement> out;
+  for (const auto& m : net.measurements)
+    if (never_sampled(rec, m.column)) out.push_back(m);
+  return out;
+}
+
+std::vector<std::string> unsampled_measurement_warnings(const Network& net, const Recording& rec, const std::string& consequence) {
+  std::vector<std::string> out;
+  for (const auto& m : unsampled_measurements(net, rec))
+    out.push_back(rec.source + ": column '" + m.column + "' (node '" + net.nodes[static_cast<std::size_t>(m.node)].name +
+                  "') has no value in any row: " + consequence);
+  return out;
+}
+
+void refuse_unsampled_measurements(const Network& net, const std::vector<Recording>& recs) {
+  for (const auto& m : net.measurements) {
+    if (recs.empty() || !std::all_of(recs.begin(), recs.end(), [&](const Recording& r) { return never_sampled(r, m.column); }))
+      continue;
+    std::string files;
+    for (const auto& rec : recs) files += (files.empty() ? "" : ", ") + rec.source;
+    const std::string node = net.nodes[static_cast<std::size_t>(m.node)].name;
+    throw std::invalid_argument("column '" + m.column + "' (measures node '" + node + "') has no value in any row of " + files +
+                                ": the probe read nothing (open or not connected?); give recordings where it reads, or leave "
+                                "the node unmeasured with '--column " + node + "='");
+  }
 }
 
 namespace {
@@ -87,21 +124,47 @@ std::string map_measurements(Network& net, const std::vector<Recording>& recs, c
   return said;
 }
 
-void check_mapping_agrees_with_roles(const Network& net, const std::vector<Recording>& recs,
-                                     const std::vector<std::string>& columns, const std::string& advice) {
+namespace {
+
+// column -> its role in `rec`'s channel_roles (absent: no role there).
+std::map<std::string, std::string> roles_by_column(const Recording& rec) {
+  std::map<std::string, std::string> out;
+  for (const auto& [column, role] : channel_roles(rec)) out[column] = role;
+  return out;
+}
+
+// True when the fit measured `node` with `model_column` against its recordings' roles on purpose
+// (--column shaft=T5 with T5 spare), and `rec_roles` lay the probes out as those recordings did for
+// it: they put the node on the same channel (`roles_column`, "" = none) and give `model_column` the
+// role it had then. A probe that moved changes one of the two; a model fitted on recordings without
+// roles, or with a hand-made map that does not say so, excuses nothing.
+bool fit_mapped_it_so(const std::vector<FittedChannel>& fitted, const std::string& node, const std::string& model_column,
+                      const std::string& roles_column, const std::map<std::string, std::string>& rec_roles) {
+  std::string fit_roles_column, role_then;
+  bool measured_so = false;
+  for (const auto& f : fitted) {
+    if (f.module_role == node) fit_roles_column = f.column;
+    if (f.column == model_column && f.node == node) measured_so = true, role_then = f.module_role;
+  }
+  const auto now = rec_roles.find(model_column);
+  return measured_so && !role_then.empty() && fit_roles_column == roles_column && now != rec_roles.end() &&
+         now->second == role_then;
+}
+
+}  // namespace
+
+void check_mapping_agrees_with_roles(const Network& net, const std::vector<FittedChannel>& fitted,
+                                     const std::vector<Recording>& recs, const std::vector<std::string>& columns,
+                                     const std::string& advice) {
   for (const auto& rec : recs) {
-    const std::vector<std::string> roles_of = [&] {
-      std::vector<std::string> out(rec.channels.size());
-      for (const auto& [column, role] : channel_roles(rec))
-        if (rec.channel_index(column) >= 0) out[static_cast<std::size_t>(rec.channel_index(column))] = role;
-      return out;
-    }();
+    const auto rec_roles = roles_by_column(rec);
     for (const auto& [node, column] : columns_from_roles(net, {rec}, columns)) {
       for (const auto& m : net.measurements) {
         if (net.nodes[static_cast<std::size_t>(m.node)].name != node || m.column == column) continue;
-        const int c = rec.channel_index(m.column);
-        const std::string there = c >= 0 && !roles_of[static_cast<std::size_t>(c)].empty()
-                                      ? m.column + " is " + roles_of[static_cast<std::size_t>(c)] + " there"
+        if (fit_mapped_it_so(fitted, node, m.column, column, rec_roles)) continue;
+        const auto role = rec_roles.find(m.column);
+        const std::string there = rec.channel_index(m.column) >= 0 && role != rec_roles.end()
+                                      ? m.column + " is " + role->second + " there"
                                       : m.column + " has no role there";
         throw std::invalid_argument(rec.source + ": its channel_roles put node '" + node + "' on " +
                                     (column.empty() ? "no channel" : column) + ", but the model measures it with " +

@@ -23,13 +23,35 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec);
 // node and both files) or as remap_measurements() does.
 std::string map_measurements(Network& net, const std::vector<Recording>& recs, const std::vector<std::string>& columns);
 
+// One entry of a fitted model's "channel_map" (model_file.hpp channel_map_json): the column, the
+// module role its channel had in the fit's recordings ("" when they carried none) and the node the
+// fit measured with it ("" for none).
+struct FittedChannel {
+  std::string column, module_role, node;
+};
+
+// The measurements of `net` whose column `rec` has but with no value in any row: a probe open or
+// unplugged for the whole recording (every cell empty). Scored or fitted, such a node gives no
+// number ("nan", "--") while its neighbours are worked out as if it had been seen.
+std::vector<Measurement> unsampled_measurements(const Network& net, const Recording& rec);
+// A warning per unsampled measurement, "REC: column 'T1' (node 'rear_bearing') has no value in any
+// row: CONSEQUENCE", for the commands that go on without it (validate, heat).
+std::vector<std::string> unsampled_measurement_warnings(const Network& net, const Recording& rec, const std::string& consequence);
+// Throws std::invalid_argument when a column `net` measures has no value in any row of any of
+// `recs` (a fit "converged" on a node it never saw, and its channel map said the probe measures
+// it), naming the column, its node and the files.
+void refuse_unsampled_measurements(const Network& net, const std::vector<Recording>& recs);
+
 // A model that already says which column measures which node (a fitted model, scored by validate,
 // heat and residual --use-values) against recordings whose channel_roles say where the probes are:
 // a role-named node measured by a column the roles give to another role (or to none) would be
-// scored against the wrong probe. Nodes named in `columns` (--column) are left to those. Throws
+// scored against the wrong probe. Nodes named in `columns` (--column) are left to those, and so is
+// a node the fit itself mapped against the roles (`fitted`, the model's channel map: fit --column
+// shaft=T5 on a spare T5) when the recording's roles say of it what the fit's recordings said. Throws
 // std::invalid_argument naming the recording, the node and both columns; `advice` ends the message
 // (what the user can do with the command at hand).
-void check_mapping_agrees_with_roles(const Network& net, const std::vector<Recording>& recs,
-                                     const std::vector<std::string>& columns, const std::string& advice);
+void check_mapping_agrees_with_roles(const Network& net, const std::vector<FittedChannel>& fitted,
+                                     const std::vector<Recording>& recs, const std::vector<std::string>& columns,
+                                     const std::string& advice);
 
 }  // namespace btsm::thermal

@@ -167,6 +167,7 @@ class FitPipeline {
       if (r.rows() < 2) throw std::invalid_argument(r.source + ": a recording needs at least two rows");
       inputs_.push_back(recording_inputs(net_, r));  // throws naming a missing or bad declared column
     }
+    refuse_unsampled_measurements(net_, recs_);
     if (!opts_.extra_heat_w.empty()) {
       if (opts_.extra_heat_w.size() != recs_.size()) throw std::invalid_argument("fit: extra_heat_w needs one matrix per recording");
       for (std::size_t r = 0; r < recs_.size(); ++r)

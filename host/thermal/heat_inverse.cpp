@@ -523,6 +523,7 @@ ModelWithParameters load_model_with_parameters(const std::string& path_or_preset
       const FittedModel fm = model_from_json(j, path_or_preset);
       m.network = fm.network;
       m.params = fm.params;
+      m.channel_map = fm.channel_map;
     } else {
       m.network = network_from_json(j, path_or_preset);
       m.params = default_parameters(m.network);

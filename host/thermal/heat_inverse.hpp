@@ -21,6 +21,7 @@
 //    (epsilon = tau * sigma * sqrt(N) / |Z|), which makes it a randomised discrepancy principle.
 //  * The paper assumes the system starts at ambient; we estimate the initial state (weak prior
 //    centred on the first measured temperatures), so recordings can start warm.
+#include "host/thermal/column_map.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
 
@@ -117,6 +118,7 @@ struct ModelWithParameters {
   Network network;
   Eigen::VectorXd params;
   std::string source;   // file or preset it came from
+  std::vector<FittedChannel> channel_map;  // a fitted model's "channel_map" (empty for a network or preset)
 };
 // Loads `path_or_preset`: (1) the fitted-model JSON of `btsm fit` (model_file.hpp: "network" +
 // "parameters" {name: value});

@@ -78,6 +78,17 @@ std::string model_problems(const Network& net, const Eigen::VectorXd& params) {
   return out;
 }
 
+std::vector<FittedChannel> fitted_channels(const nlohmann::json& channel_map) {
+  std::vector<FittedChannel> out;
+  if (!channel_map.is_array()) return out;
+  auto text = [](const nlohmann::json& e, const char* key) {
+    return e.contains(key) && e.at(key).is_string() ? e.at(key).get<std::string>() : std::string();
+  };
+  for (const auto& e : channel_map)
+    if (e.is_object() && !text(e, "column").empty()) out.push_back({text(e, "column"), text(e, "module_role"), text(e, "node")});
+  return out;
+}
+
 FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
   // The other JSON files the tool writes, given where a fit result belongs, are named for what they
   // are: "needs 'network'" alone sends a user looking for a field a reduced model never has.
@@ -97,6 +108,7 @@ FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
   FittedModel m;
   m.json = j;
   m.network = network_from_json(j.at("network"), src + " (network)");
+  if (j.contains("channel_map")) m.channel_map = fitted_channels(j.at("channel_map"));
   m.params.resize(m.network.param_count());
   m.sigma = Eigen::VectorXd::Constant(m.network.param_count(), std::numeric_limits<double>::quiet_NaN());
   const auto& pv = j.at("parameters");

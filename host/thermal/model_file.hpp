@@ -19,6 +19,7 @@ struct FittedModel {
   Eigen::VectorXd params;
   Eigen::VectorXd sigma;   // NaN where unknown (model written by hand)
   nlohmann::json json;     // the whole document
+  std::vector<FittedChannel> channel_map;  // its "channel_map": where the fit's probes were (empty: none)
 };
 
 // Size cap of a model file (a fitted model is a few kB), stated in the error.
@@ -40,6 +41,10 @@ std::string model_problems(const Network& net, const Eigen::VectorXd& params);
 // or "ambient" for the channel the recordings name as ambient (recorded as ambient_c). Channels
 // without a column in the recordings are left out.
 nlohmann::json channel_map_json(const Network& net, const std::vector<Recording>& recs);
+
+// The entries of a "channel_map" array that name a column (FittedModel::channel_map); entries of
+// another shape are left out (reduce, which builds the module's map from them, refuses those itself).
+std::vector<FittedChannel> fitted_channels(const nlohmann::json& channel_map);
 
 // Reads a model; every model passes model_problems() on load, so validate, reduce, heat and
 // residual never work on a value the network forbids. Throws std::invalid_argument (io::InputError

@@ -6,6 +6,7 @@
 #include "host/io/input_error.hpp"
 #include "host/io/json_input.hpp"
 
+#include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
@@ -141,6 +142,65 @@ void read_mode_terms(const Network& net, const json& j, bool link, std::vector<T
 double term_value(const Term& t, const Eigen::VectorXd& p, double s) {
   const double v = p[t.param];
   return t.speed_exponent == 0.0 ? v : v * std::pow(s, t.speed_exponent);
+}
+
+// A link conducts in `mode` when one of its terms does: any term while running; at standstill
+// (cooling, 0 rpm) only a term without a speed law, since (w/w0)^e is 0 or infinite at w = 0.
+// An event-switched term counts, as in the stability check of a model (model_file.cpp): the
+// network is refused only when no event state links the node.
+bool conducts(const Link& l, Mode mode) {
+  if (mode == Mode::Operating) return !l.operating.empty();
+  return std::any_of(l.cooling.begin(), l.cooling.end(), [](const Term& t) { return t.speed_exponent == 0.0; });
+}
+
+// Per node: whether a chain of links that conduct in `mode` joins it to the ambient or a boundary.
+std::vector<bool> reaches_ambient(const Network& net, Mode mode) {
+  std::vector<bool> reached(net.nodes.size(), false);
+  for (bool grew = true; grew;) {
+    grew = false;
+    for (const Link& l : net.links) {
+      if (!conducts(l, mode)) continue;
+      const bool a = reached[static_cast<std::size_t>(l.a)];
+      const bool b = l.b < 0 || reached[static_cast<std::size_t>(l.b)];  // ambient or a boundary
+      if (a == b) continue;
+      reached[static_cast<std::size_t>(a ? l.b : l.a)] = true;
+      grew = true;
+    }
+  }
+  return reached;
+}
+
+// Why node `i` is cut off at standstill or while running ("" when it is not).
+std::string cut_off_reason(const Network& net, int i, const std::vector<bool>& at_standstill, const std::vector<bool>& running) {
+  const auto k = static_cast<std::size_t>(i);
+  const std::string node = "node '" + net.nodes[k].name + "'";
+  const bool linked = std::any_of(net.links.begin(), net.links.end(), [&](const Link& l) { return l.a == i || l.b == i; });
+  if (!linked) return node + " has no link at all";
+  if (!at_standstill[k] && running[k])
+    return node + " reaches the ambient only while running (through operating terms or cooling terms with a speed_exponent)";
+  if (!at_standstill[k]) return node + " has no path of links to the ambient or a boundary";
+  if (!running[k]) return node + " reaches the ambient only at standstill (its path has no operating terms)";
+  return "";
+}
+
+// The network's structure, before any fit: a node that no path of conducting links joins to the
+// ambient (or a declared boundary) heats or cools for ever, so every fit of it ends "not stable in
+// cooling mode" without naming the node, or in a start value for a link between unmeasured nodes.
+void check_paths_to_ambient(const Network& net) {
+  const std::vector<bool> at_standstill = reaches_ambient(net, Mode::Cooling), running = reaches_ambient(net, Mode::Operating);
+  std::string reasons;
+  int listed = 0, more = 0;
+  for (int i = 0; i < net.node_count(); ++i) {
+    const std::string why = cut_off_reason(net, i, at_standstill, running);
+    if (why.empty()) continue;
+    if (listed++ < 8) reasons += (reasons.empty() ? "" : "; ") + why;
+    else ++more;
+  }
+  if (reasons.empty()) return;
+  if (more > 0) reasons += "; and " + std::to_string(more) + " more node(s)";
+  bad("network '" + net.name + "'", "links",
+      reasons + ": every node needs a path to 'ambient' or a boundary through links that conduct both at standstill (a "
+                "'both' or 'cooling' term without speed_exponent) and while running, or its temperature never settles");
 }
 
 }  // namespace
@@ -427,6 +487,7 @@ Network network_from_json(const json& j, const std::string& src) {
   }
   try {
     net.validate();
+    check_paths_to_ambient(net);
   } catch (const std::invalid_argument& e) {
     throw std::invalid_argument(src + ": " + e.what());
   }

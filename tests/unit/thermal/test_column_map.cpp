@@ -142,6 +142,83 @@ TEST(ColumnMap, RecordingsThatDisagreeAreRefusedNamingBoth) {
   EXPECT_NO_THROW(th::map_measurements(net, {a, b}, {"shaft=T5"}));  // told explicitly: fine
 }
 
+// The channel map `fit --column shaft=T5` writes from recordings with the default roles (ch5 spare,
+// ch4 the ambient, recorded as ambient_c).
+const char* kDefaultRoles = "T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=spare";
+std::vector<th::FittedChannel> shaft_fitted_on_spare_t5() {
+  return {{"T1", "rear_bearing", "rear_bearing"}, {"T2", "housing", "housing"}, {"T3", "front_bearing", "front_bearing"},
+          {"ambient_c", "ambient", "ambient"},    {"T5", "spare", "shaft"}};
+}
+
+th::Network shaft_on_t5() {
+  th::Network net = th::preset_network("spindle4");
+  th::remap_measurements(net, {"shaft=T5"});
+  return net;
+}
+
+std::string mapping_error(const std::vector<th::FittedChannel>& fitted, const std::string& roles) {
+  try {
+    th::check_mapping_agrees_with_roles(shaft_on_t5(), fitted, {module_recording(roles)}, {}, "ADVICE");
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// Probe 7 (F2): the README's model (fit --column shaft=T5 on module recordings, T5 spare) was refused
+// by validate, heat, reduce --calibrate-bands and residual --use-values on its own fit recordings:
+// "the probes are not where the model says; refit" -- and the refit gave the same model. The fit's
+// channel map says it mapped the spare channel on purpose; recordings laid out as then are scored.
+TEST(ColumnMap, AMappingTheFitMadeAgainstTheRolesHoldsOnRecordingsWithThoseRoles) {
+  EXPECT_EQ(mapping_error(shaft_fitted_on_spare_t5(), kDefaultRoles), "");
+  // The module now naming the shaft probe agrees with the model as well.
+  EXPECT_EQ(mapping_error(shaft_fitted_on_spare_t5(), "T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=shaft"), "");
+  // Without a map (a model fitted before btsm kept one) the roles are all there is to go by.
+  EXPECT_NE(mapping_error({}, kDefaultRoles).find("put node 'shaft' on no channel, but the model measures it with T5 (T5 is spare there)"),
+            std::string::npos);
+  // A map that does not say the fit measured the shaft with T5 excuses nothing.
+  auto unmapped = shaft_fitted_on_spare_t5();
+  unmapped.back().node = "";
+  EXPECT_NE(mapping_error(unmapped, kDefaultRoles).find("node 'shaft'"), std::string::npos);
+}
+
+TEST(ColumnMap, AProbeMovedSinceTheFitIsStillRefused) {
+  const auto fitted = shaft_fitted_on_spare_t5();
+  EXPECT_NE(mapping_error(fitted, "T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T5=disabled")
+                .find("put node 'shaft' on no channel, but the model measures it with T5 (T5 is disabled there): the probes are not "
+                      "where the model says; ADVICE"),
+            std::string::npos);
+  EXPECT_NE(mapping_error(fitted, "T1=housing,T2=rear_bearing,T3=front_bearing,T4=ambient,T5=spare")
+                .find("put node 'housing' on T1, but the model measures it with T2 (T2 is rear_bearing there)"),
+            std::string::npos);
+  // The roles now put the shaft on a channel of its own: not where the fit had it.
+  EXPECT_NE(mapping_error(fitted, "T1=rear_bearing,T2=housing,T3=shaft,T4=ambient,T5=front_bearing").find("rec.csv: its channel_roles"),
+            std::string::npos);
+}
+
+// Probe 7 (F5): T5 empty in every row of every recording, mapped by --column shaft=T5, and the fit
+// said "converged" with a channel map that has T5 measure the shaft.
+TEST(ColumnMap, AMeasuredColumnWithNoValueInAnyRecordingIsRefusedByTheFit) {
+  auto rec = [](const std::string& source, const std::string& t5) {
+    return th::parse_recording_csv("time_s,speed_rpm,ambient_c,T1,T2,T3,T5\n0,6000,20,21,22,23,\n5,6000,20,21,22,23," + t5 + "\n", source);
+  };
+  const th::Network net = shaft_on_t5();
+  ASSERT_EQ(th::unsampled_measurements(net, rec("a.csv", "")).size(), 1u);
+  try {
+    th::fit_network(net, {rec("a.csv", ""), rec("b.csv", "")});
+    FAIL() << "no error";
+  } catch (const std::invalid_argument& e) {
+    EXPECT_NE(std::string(e.what()).find("column 'T5' (measures node 'shaft') has no value in any row of a.csv, b.csv"), std::string::npos)
+        << e.what();
+  }
+  // One value in one recording is a probe that reads (gaps are the fit's to bridge).
+  EXPECT_NO_THROW(th::refuse_unsampled_measurements(net, {rec("a.csv", ""), rec("b.csv", "24")}));
+  EXPECT_TRUE(th::unsampled_measurements(net, rec("b.csv", "24")).empty());
+  const auto said = th::unsampled_measurement_warnings(net, rec("a.csv", ""), "WHAT NOW");
+  ASSERT_EQ(said.size(), 1u);
+  EXPECT_EQ(said[0], "a.csv: column 'T5' (node 'shaft') has no value in any row: WHAT NOW");
+}
+
 // What a reader refuses in the metadata, before any command maps a probe: the entry is named.
 TEST(ColumnMap, ContradictoryRoleMetadataIsRefusedWhenRead) {
   auto read = [](const std::string& meta) {
