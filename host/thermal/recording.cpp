@@ -69,7 +69,8 @@ double parse_number(const std::string& cell, bool allow_empty, const std::string
   double v = 0.0;
   const char* first = cell.data();
   const char* last = cell.data() + cell.size();
-  if (*first == '+') ++first;  // from_chars rejects a leading '+'
+  // from_chars rejects a leading '+': skip it, but only before a number ("+-20" then read as -20)
+  if (*first == '+' && last - first > 1 && first[1] != '-') ++first;
   auto [ptr, ec] = std::from_chars(first, last, v);
   if (ec == std::errc::result_out_of_range && ptr == last) {
     // A well-formed number beyond a double: one too small to hold (1e-400) is 0 for any
