@@ -111,6 +111,16 @@ double check_temperature(double v, const std::string& cell, const std::string& s
 
 }  // namespace
 
+std::string reserved_column_problem(const std::string& column) {
+  const char* what = column == "time_s"      ? "the recording's time (s)"
+                     : column == "speed_rpm" ? "the spindle speed (rpm)"
+                     : column == "ambient_c" ? "the ambient temperature, the network's boundary, always used as such"
+                                             : nullptr;
+  if (what == nullptr) return "";
+  return std::string("is reserved: ") + what +
+         " (time_s, speed_rpm and ambient_c are the first three columns of every recording, never a temperature column)";
+}
+
 int Recording::channel_index(const std::string& name) const {
   for (std::size_t i = 0; i < channels.size(); ++i)
     if (channels[i] == name) return static_cast<int>(i);
