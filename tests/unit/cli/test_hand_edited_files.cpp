@@ -6,6 +6,8 @@
 #include "model_fixture.hpp"
 #include "refusals.hpp"
 
+#include "host/io/utf8_text.hpp"
+
 #include <gtest/gtest.h>
 #include <nlohmann/json.hpp>
 
@@ -103,6 +105,30 @@ TEST(HandEditedFiles, SuiteFilesTheScoringCannotTakeAreRefused) {
   const CliResult honest = run({}, good.dump());
   EXPECT_EQ(honest.code, 0) << honest.err;
   EXPECT_TRUE(mentions(honest, ", named")) << honest.err;
+}
+
+// P3-b: characters a terminal shows as nothing or as a space reached the messages unchanged: a BOM
+// inside a row was "bad number '8000'" (it looked like a good one), a no-break space "bad number '
+// 20.0'", a header "T1" + zero-width space "no column 'T1' ... columns: T1 T2" (the same name,
+// seen). They are shown as \u{...} now, in every message (io::printable).
+TEST(HandEditedFiles, InvisibleCharactersAreShownInMessages) {
+  EXPECT_EQ(io::printable("a\xEF\xBB\xBF" "b\xC2\xA0" "c\xE2\x80\x8B" "d\xE2\x80\xAE" "e\xE2\x80\xA8" "f\xF3\xA0\x80\x81"),
+            "a\\u{feff}b\\u{00a0}c\\u{200b}d\\u{202e}e\\u{2028}f\\u{e0001}");
+  // visible text, a plain space and non-ASCII letters and signs stay as they are
+  EXPECT_EQ(io::printable("20 \xC2\xB0" "C \xC3\xA4 \xE2\x80\x93 \xE2\x82\xAC"), "20 \xC2\xB0" "C \xC3\xA4 \xE2\x80\x93 \xE2\x82\xAC");
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  auto cell = [](int row, int col, const char* text) {
+    return [=](int r, int c, const std::string& t) { return r == row && c == col ? std::string(text) : t; };
+  };
+  write_text(d.file("bom.csv"), recording_csv(200, cell(50, 1, "\xEF\xBB\xBF" "6000")));
+  write_text(d.file("nbsp.csv"), recording_csv(200, cell(50, 3, "\xC2\xA0" "20.0")));
+  std::string zwsp = recording_csv(200);
+  zwsp.replace(zwsp.find(",T1,"), 4, ",T1\xE2\x80\x8B,");
+  write_text(d.file("zwsp.csv"), zwsp);
+  expect_refusals(d, {{"validate model.json bom.csv", "column 'speed_rpm': bad number '\\u{feff}6000'"},
+                      {"validate model.json nbsp.csv", "column 'T1': bad number '\\u{00a0}20.0'"},
+                      {"validate model.json zwsp.csv", "columns: T1\\u{200b} T2"}});
 }
 
 }  // namespace
