@@ -126,7 +126,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     try {
       (void)failed_case(truth, "", 0);
     } catch (const nlohmann::json::exception& e) {
-      throw io::InputError(path.string() + ": not a case's truth: " + e.what());
+      throw io::InputError(path.string() + ": not a case's truth: " + io::without_json_exception_ids(e.what()));
     }
     return truth;
   };
@@ -154,7 +154,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
         try {
           not_an_answer = answer_shape_problem(read_json(answer_part(dir)));
         } catch (const std::exception& e) {
-          not_an_answer = e.what();
+          not_an_answer = io::without_json_exception_ids(e.what());
         }
       }
       if (exited_ok && not_an_answer.empty())
@@ -183,7 +183,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
         const double reported = answer.contains("seconds") && answer["seconds"].is_number() ? answer["seconds"].get<double>() : secs;
         r = score_case(truth, answer, ch.pid < 0 ? reported : secs);
       } catch (const std::exception& e) {
-        r = failed_case(truth, std::string("unreadable residual.json: ") + e.what(), secs);
+        r = failed_case(truth, std::string("unreadable residual.json: ") + io::without_json_exception_ids(e.what()), secs);
       }
     }
     results[ch.index] = r;

@@ -6,6 +6,7 @@
 #include "model_fixture.hpp"
 #include "refusals.hpp"
 
+#include "host/io/json_input.hpp"
 #include "host/io/utf8_text.hpp"
 
 #include <gtest/gtest.h>
@@ -13,6 +14,7 @@
 
 #include <functional>
 #include <string>
+#include <utility>
 #include <vector>
 
 namespace btsm::test {
@@ -129,6 +131,30 @@ TEST(HandEditedFiles, InvisibleCharactersAreShownInMessages) {
   expect_refusals(d, {{"validate model.json bom.csv", "column 'speed_rpm': bad number '\\u{feff}6000'"},
                       {"validate model.json nbsp.csv", "column 'T1': bad number '\\u{00a0}20.0'"},
                       {"validate model.json zwsp.csv", "columns: T1\\u{200b} T2"}});
+}
+
+// P3-h: the JSON library's ids ("[json.exception.parse_error.101]", "[json.exception.type_error.302]")
+// stood in front of the human part of messages. They are left out now; the text after them stays.
+TEST(HandEditedFiles, MessagesCarryNoJsonLibraryIds) {
+  EXPECT_EQ(io::without_json_exception_ids("m.json: not valid JSON: [json.exception.parse_error.101] parse error at line 1"),
+            "m.json: not valid JSON: parse error at line 1");
+  EXPECT_EQ(io::without_json_exception_ids("a ([json.exception.type_error.302] type must be string, but is number)"),
+            "a (type must be string, but is number)");
+  EXPECT_EQ(io::without_json_exception_ids("[json.exception.x] [no id] [json.exception"), "[no id] [json.exception");
+  ScratchDir d;
+  write_text(d.file("rec.csv"), recording_csv(200));
+  write_text(d.file("cut.json"), spindle4_model_json().substr(0, 300));
+  nlohmann::json m = nlohmann::json::parse(spindle4_model_json());
+  m["channel_map"][0]["channel"] = "1";
+  write_text(d.file("shape.json"), m.dump(2));
+  for (const auto& [args, says] : std::vector<std::pair<std::string, std::string>>{
+           {"validate cut.json rec.csv", "cut.json: not valid JSON: parse error at line"},
+           {"reduce shape.json --speeds 4000,6000 --out r.json", "and a string 'node' (type must be number, but is string)"}}) {
+    const CliResult r = run_btsm(d, args, 120);
+    EXPECT_EQ(r.code, 2) << args << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, says)) << args << "\n" << r.err;
+    EXPECT_FALSE(mentions(r, "json.exception")) << args << "\n" << r.err;
+  }
 }
 
 }  // namespace
