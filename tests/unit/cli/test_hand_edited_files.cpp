@@ -157,5 +157,25 @@ TEST(HandEditedFiles, MessagesCarryNoJsonLibraryIds) {
   }
 }
 
+// P3-f/g: a roles line written "# channel_roles = ...", "## channel_roles:" or "# channel-roles:"
+// was ignored without a word (swapped probes in it were scored as they were not); a role on T9 was
+// ignored while "# ambient_channel: T9" was refused. The first are warned about by every command
+// that reads recordings, the second is refused alike.
+TEST(HandEditedFiles, MetadataNearMissesAreWarnedAboutAndAnUnknownChannelIsRefused) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  const std::string swapped = "T1=front_bearing,T2=housing,T3=rear_bearing,T4=ambient,T5=shaft\n";
+  write_text(d.file("hash.csv"), "## channel_roles: " + swapped + recording_csv(200));
+  write_text(d.file("dash.csv"), "# channel-roles: " + swapped + recording_csv(200));
+  for (const std::string args : {"validate model.json hash.csv", "heat model.json dash.csv --out h"}) {
+    const CliResult r = run_btsm(d, args, 120);
+    EXPECT_EQ(r.code, 0) << args << "\n" << r.err;
+    EXPECT_TRUE(mentions(r, "WARNING: ") && mentions(r, "is not read as '# channel_roles:'") && mentions(r, "what it says is ignored"))
+        << args << "\n" << r.err;
+  }
+  write_text(d.file("t9.csv"), "# channel_roles: T1=rear_bearing,T2=housing,T3=front_bearing,T4=ambient,T9=shaft\n" + recording_csv(200));
+  expect_refusals(d, {{"validate model.json t9.csv", "t9.csv: metadata '# channel_roles': entry 'T9=shaft': 'T9' is not a module channel (T1..T5)"}});
+}
+
 }  // namespace
 }  // namespace btsm::test
