@@ -8,6 +8,7 @@
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
+#include "host/thermal/recording_metadata.hpp"
 #include "host/report/thermal_figures.hpp"
 
 #include <fmt/core.h>
@@ -131,7 +132,7 @@ void run_heat(const HeatArgs& a) {
   try {
     model = th::load_model_with_parameters(a.model);
     rec = th::read_recording_csv(a.recording);
-    if (const std::string gap = th::long_gap_warning(rec); !gap.empty()) std::cerr << "heat: WARNING: " << gap << "\n";
+    for (const std::string& w : th::reading_warnings(rec)) std::cerr << "heat: WARNING: " << io::printable(w) << "\n";
     th::check_mapping_agrees_with_roles(model.network, model.channel_map, {rec}, {},
                                         "refit the model with this recording, or correct its channel_roles line");
   } catch (const std::exception& e) {

@@ -88,7 +88,7 @@ void print_valid_speed_range(const std::string& file) {
   try {
     print_speed_coverage(j["speed_coverage"]);
   } catch (const nlohmann::json::exception& e) {  // informative only: the blob itself was checked
-    std::cerr << "flash-model: WARNING: " << io::printable(file) << ": speed_coverage is malformed (" << io::printable(e.what())
+    std::cerr << "flash-model: WARNING: " << io::printable(file) << ": speed_coverage is malformed (" << io::printable(io::without_json_exception_ids(e.what()))
               << "); not shown\n";
   }
 }

@@ -4,6 +4,7 @@
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "host/io/output_file.hpp"
+#include "host/io/utf8_text.hpp"
 #include "host/residual/residual_loop.hpp"
 #include "host/residual/residual_report.hpp"
 #include "host/thermal/column_map.hpp"
@@ -12,6 +13,7 @@
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
+#include "host/thermal/recording_metadata.hpp"
 
 #include <fmt/core.h>
 
@@ -67,7 +69,7 @@ void run_residual(ResidualArgs& a) {
     for (auto* set : {&fit, &check})
       for (auto& r : *set) {
         th::declare_columns(r, a.boundaries, a.events);
-        if (const std::string gap = th::long_gap_warning(r); !gap.empty()) std::cerr << "residual: WARNING: " << gap << "\n";
+        for (const std::string& w : th::reading_warnings(r)) std::cerr << "residual: WARNING: " << io::printable(w) << "\n";
       }
   } catch (const std::exception& e) {
     throw CommandError(kExitUsage, e.what());

@@ -9,6 +9,7 @@
 #include "host/thermal/detector_calibration.hpp"
 #include "host/thermal/fit.hpp"
 #include "host/thermal/model_file.hpp"
+#include "host/thermal/recording_metadata.hpp"
 #include "host/thermal/reduce.hpp"
 #include "host/thermal/speed_coverage.hpp"
 #include "host/thermal/time_constant_text.hpp"
@@ -42,7 +43,7 @@ std::vector<Recording> read_all(const std::vector<std::string>& files) {
     } catch (const std::exception& e) {
       throw CommandError(kExitUsage, e.what());
     }
-    if (const std::string gap = long_gap_warning(recs.back()); !gap.empty()) std::cerr << "WARNING: " << gap << "\n";
+    for (const std::string& w : reading_warnings(recs.back())) std::cerr << "WARNING: " << io::printable(w) << "\n";
   }
   return recs;
 }

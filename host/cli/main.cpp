@@ -2,6 +2,7 @@
 #include "cli_support.hpp"
 #include "commands.hpp"
 #include "host/io/input_error.hpp"
+#include "host/io/json_input.hpp"
 #include "host/io/utf8_text.hpp"
 
 #include <fmt/core.h>
@@ -41,7 +42,8 @@ int main(int argc, char** argv) {
   // a parameter name forged a line of output.
   const auto said = [&command](const char* what) {
     const std::string text = what, own = command() + ": ";
-    return btsm::io::printable(text.compare(0, own.size(), own) == 0 ? text.substr(own.size()) : text);
+    return btsm::io::printable(
+        btsm::io::without_json_exception_ids(text.compare(0, own.size(), own) == 0 ? text.substr(own.size()) : text));
   };
   try {
     app.parse(argc, argv);
@@ -56,10 +58,12 @@ int main(int argc, char** argv) {
     std::cerr << "btsm " << command() << ": " << said(e.what()) << "\n";
     return btsm::cli::kExitUsage;
   } catch (const nlohmann::json::exception& e) {  // a JSON input of the wrong shape no reader named
-    std::cerr << "btsm " << command() << ": a JSON input has the wrong shape: " << btsm::io::printable(e.what()) << "\n";
+    std::cerr << "btsm " << command() << ": a JSON input has the wrong shape: "
+              << btsm::io::printable(btsm::io::without_json_exception_ids(e.what())) << "\n";
     return btsm::cli::kExitUsage;
   } catch (const std::exception& e) {
-    std::cerr << "btsm " << command() << ": error: " << btsm::io::printable(e.what()) << "\n";
+    std::cerr << "btsm " << command() << ": error: " << btsm::io::printable(btsm::io::without_json_exception_ids(e.what()))
+              << "\n";
     return btsm::cli::kExitFailure;
   }
   // Tables and --json go to stdout: a full disk or closed pipe there is a failed run, not exit 0.

@@ -93,7 +93,7 @@ nlohmann::json parse_json_text(std::string_view text, const std::string& source,
     value = nlohmann::json::parse(text.begin(), text.end(), std::ref(watch));
   } catch (const nlohmann::json::exception& e) {
     // parse_error, and out_of_range for a number beyond double range (1e400)
-    throw InputError(source + ": not valid JSON: " + e.what());
+    throw InputError(source + ": not valid JSON: " + without_json_exception_ids(e.what()));
   }
   if (!watch.first_duplicate().empty())
     throw InputError(source + ": key " + json_excerpt(watch.first_duplicate(), 120) +
@@ -103,6 +103,20 @@ nlohmann::json parse_json_text(std::string_view text, const std::string& source,
 
 nlohmann::json read_json_file(const std::string& path, std::size_t max_bytes, const std::string& what) {
   return parse_json_text(read_input_file(path, max_bytes, what), path);
+}
+
+std::string without_json_exception_ids(std::string_view text) {
+  static constexpr std::string_view kId = "[json.exception.";
+  std::string out;
+  std::size_t at = 0;
+  for (std::size_t id; (id = text.find(kId, at)) != std::string_view::npos;) {
+    const std::size_t close = text.find(']', id);
+    if (close == std::string_view::npos) break;
+    out.append(text.substr(at, id - at));
+    at = close + 1;
+    if (at < text.size() && text[at] == ' ') ++at;
+  }
+  return out.append(text.substr(at));
 }
 
 std::string json_excerpt(const nlohmann::json& value, std::size_t max_chars) {

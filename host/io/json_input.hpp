@@ -22,6 +22,11 @@ nlohmann::json parse_json_text(std::string_view text, const std::string& source,
 // Reads (read_input_file, Text) and parses a JSON file of at most max_bytes.
 nlohmann::json read_json_file(const std::string& path, std::size_t max_bytes, const std::string& what);
 
+// `text` without the JSON library's exception ids ("[json.exception.type_error.302] type must be
+// string, but is number" -> "type must be string, but is number"): the id means nothing to a user
+// and hides the human part at the start of the message. Everything else is kept.
+std::string without_json_exception_ids(std::string_view text);
+
 // A value for an error message: its compact dump, cut to max_chars with "..." (a file's bad field
 // may be megabytes long).
 std::string json_excerpt(const nlohmann::json& value, std::size_t max_chars = 80);

@@ -35,8 +35,29 @@ std::size_t sequence_length(std::string_view text, std::size_t i) {
   return n;
 }
 
+// The code point of the well-formed sequence of n bytes at text[i].
+char32_t code_point(std::string_view text, std::size_t i, std::size_t n) {
+  static constexpr unsigned kLeadMask[5] = {0, 0x7F, 0x1F, 0x0F, 0x07};
+  char32_t cp = static_cast<unsigned char>(text[i]) & kLeadMask[n];
+  for (std::size_t k = 1; k < n; ++k) cp = (cp << 6) | (static_cast<unsigned char>(text[i + k]) & 0x3F);
+  return cp;
+}
+
+// Characters a terminal shows as nothing or as a plain space, or that reorder or break the text
+// around them: Unicode's format characters (Cf: soft hyphen, zero-width space/joiners, direction
+// marks, embeddings, overrides and isolates, word joiner, BOM, tags), the spaces other than
+// U+0020 (no-break, en/em ..., ideographic), the line and paragraph separators, fillers and
+// variation selectors. In a message "bad number ' 20.0'" with a no-break space read as a space,
+// and a right-to-left override turned the rest of the line around.
+bool invisible(char32_t c) {
+  return c == 0x00A0 || c == 0x00AD || c == 0x034F || c == 0x061C || c == 0x115F || c == 0x1160 || c == 0x1680 ||
+         c == 0x180E || (c >= 0x2000 && c <= 0x200F) || (c >= 0x2028 && c <= 0x202F) || (c >= 0x205F && c <= 0x206F) ||
+         c == 0x3000 || c == 0x3164 || (c >= 0xFE00 && c <= 0xFE0F) || c == 0xFEFF || c == 0xFFA0 ||
+         (c >= 0xFFF9 && c <= 0xFFFB) || (c >= 0x1D173 && c <= 0x1D17A) || (c >= 0xE0000 && c <= 0xE0FFF);
+}
+
 void append_hex(std::string& out, const char* form, unsigned value) {
-  char buf[8];
+  char buf[16];
   std::snprintf(buf, sizeof buf, form, value);
   out += buf;
 }
@@ -79,6 +100,9 @@ std::string printable(std::string_view text) {
     } else if (n == 2 && c == 0xC2 && static_cast<unsigned char>(text[i + 1]) < 0xA0) {
       append_hex(out, "\\u%04x", static_cast<unsigned char>(text[i + 1]));  // C1: 0xC2 0x9B is U+009B, CSI
       i += 2;
+    } else if (n > 1 && invisible(code_point(text, i, n))) {
+      append_hex(out, "\\u{%04x}", static_cast<unsigned>(code_point(text, i, n)));
+      i += n;
     } else {
       out.append(text.substr(i, n));
       i += n;

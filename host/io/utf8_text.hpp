@@ -18,8 +18,10 @@ std::size_t invalid_utf8_at(std::string_view text);
 std::string utf8_problem(std::string_view text);
 
 // `text` with what a terminal would act on made visible: \n, \r, \t, other control characters
-// and DEL as \xNN (ESC is \x1b), the C1 controls U+0080..U+009F as \u0080..\u009f, and bytes that
-// are not UTF-8 as \xNN. Everything else, backslashes included, is kept as it is.
+// and DEL as \xNN (ESC is \x1b), the C1 controls U+0080..U+009F as \u0080..\u009f, characters
+// shown as nothing or as a plain space or that reorder the line (BOM, no-break and other spaces,
+// zero-width space and joiners, direction marks and overrides, tags, ...) as \u{feff}, and bytes
+// that are not UTF-8 as \xNN. Everything else, backslashes included, is kept as it is.
 std::string printable(std::string_view text);
 
 }  // namespace btsm::io

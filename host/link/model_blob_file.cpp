@@ -6,6 +6,7 @@
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
 #include "host/io/json_input.hpp"
+#include "host/thermal/reduced_model_json.hpp"
 
 #include <fmt/format.h>
 #include <nlohmann/json.hpp>
@@ -25,66 +26,15 @@ bool looks_like_json(std::string_view content, const std::string& path) {
   return first != std::string_view::npos && content[first] == '{';
 }
 
-// Where a reduced-model JSON's "blob_hex" and its "scheduled_model" disagree ("" when they agree
-// or the blob does not decode: check_model_blob() then names that). `btsm reduce` writes both from
-// one model; an edit to either is caught here instead of flashing something the table above it
-// does not describe. Compared: what a user reads and might edit -- sample period, channel mask, the
-// ambient channel, the breakpoint speeds and the poles (to their Q1.30 resolution).
-std::string blob_contradicts_schedule(const std::vector<uint8_t>& blob, const nlohmann::json& sm) {
-  ReducedModel m;
-  if (!decode(blob.data(), blob.size(), m).ok()) return {};
-  if (!sm.is_object()) return "\"scheduled_model\" is not an object";
-  // A compared field that is no number would be skipped by the comparison below: name it.
-  auto not_number = [](const nlohmann::json& j, const char* key) {
-    return j.is_object() && j.contains(key) && !j[key].is_number();
-  };
-  for (const char* key : {"dt_ms", "enabled_mask"})
-    if (not_number(sm, key)) return std::string(key) + " is " + io::json_excerpt(sm[key]) + ", not a number";
-  if (sm.contains("breakpoints") && sm["breakpoints"].is_array())
-    for (std::size_t i = 0; i < sm["breakpoints"].size(); ++i) {
-      const nlohmann::json& bp = sm["breakpoints"][i];
-      if (not_number(bp, "speed_rpm")) return fmt::format("breakpoint {}: speed_rpm is {}, not a number", i, io::json_excerpt(bp["speed_rpm"]));
-      if (bp.is_object() && bp.contains("a") && bp["a"].is_array())
-        for (std::size_t k = 0; k < bp["a"].size(); ++k)
-          if (!bp["a"][k].is_number() && !bp["a"][k].is_null())
-            return fmt::format("breakpoint {} channel {}: pole is {}, not a number", i, k + 1, io::json_excerpt(bp["a"][k]));
-    }
-  const ModelSchedule& s = m.schedule;
-  auto number = [&](const nlohmann::json& j, const char* key, double& v) {
-    if (!j.is_object() || !j.contains(key) || !j[key].is_number()) return false;
-    v = j[key].get<double>();
-    return true;
-  };
-  double v = 0;
-  if (number(sm, "dt_ms", v) && v != s.dt_ms) return fmt::format("dt_ms {} in the blob, {} in scheduled_model", s.dt_ms, v);
-  if (number(sm, "enabled_mask", v) && v != s.enabled_mask)
-    return fmt::format("enabled_mask {} in the blob, {} in scheduled_model", s.enabled_mask, v);
-  if (sm.contains("ambient_channel")) {
-    const nlohmann::json& a = sm["ambient_channel"];
-    const int blob_ch = s.ambient_channel == kModelAmbientNone ? 0 : s.ambient_channel + 1;
-    const int json_ch = a.is_number_integer() ? a.get<int>() : 0;
-    if ((a.is_null() || a.is_number_integer()) && blob_ch != json_ch)
-      return fmt::format("ambient channel {} in the blob, {} in scheduled_model", blob_ch ? std::to_string(blob_ch) : "none",
-                         json_ch ? std::to_string(json_ch) : "none");
-  }
-  if (!sm.contains("breakpoints") || !sm["breakpoints"].is_array()) return {};
-  const nlohmann::json& bps = sm["breakpoints"];
-  if (bps.size() != s.n_breakpoints)
-    return fmt::format("{} breakpoints in the blob, {} in scheduled_model", s.n_breakpoints, bps.size());
-  for (uint8_t i = 0; i < s.n_breakpoints; ++i) {
-    if (number(bps[i], "speed_rpm", v) && v != s.speed_rpm[i])
-      return fmt::format("breakpoint {}: {} rpm in the blob, {} in scheduled_model", i, s.speed_rpm[i], v);
-    if (!bps[i].is_object() || !bps[i].contains("a") || !bps[i]["a"].is_array() || bps[i]["a"].size() != kModelChannels) continue;
-    for (uint8_t j = 0; j < kModelChannels; ++j) {
-      const nlohmann::json& aj = bps[i]["a"][j];
-      if (!aj.is_number() || !model_predicts(s.enabled_mask, s.ambient_channel, j)) continue;
-      const double blob_a = std::ldexp(static_cast<double>(m.bp[i].ch[j].a_q30), -kPoleFracBits);
-      if (std::abs(blob_a - aj.get<double>()) > 1e-6)
-        return fmt::format("breakpoint {} channel {}: pole {:.9f} in the blob, {:.9f} in scheduled_model", i, j + 1, blob_a,
-                           aj.get<double>());
-    }
-  }
-  return {};
+// A reduced-model JSON whose "scheduled_model" table says another model than its blob was edited
+// after `btsm reduce` wrote both: flashing would send the blob's values, not the ones a user reads
+// (and may have raised). Every field the blob encodes is compared (thermal/reduced_model_json).
+std::vector<uint8_t> checked_against_table(std::vector<uint8_t> blob, const nlohmann::json& j, const std::string& path,
+                                           const std::string& blob_key) {
+  if (j.is_object() && j.contains("scheduled_model"))
+    if (const std::string why = thermal::scheduled_model_contradiction(j["scheduled_model"], blob, blob_key); !why.empty())
+      throw io::InputError(path + ": " + why);
+  return blob;
 }
 
 }  // namespace
@@ -124,18 +74,14 @@ std::vector<uint8_t> model_blob_from_content(std::string_view content, const std
       throw io::InputError(path + ": gives the blob twice (" + given[0] + " and " + given[1] + "); keep the one meant");
     for (const char* key : {"blob_hex", "hex", "blob"})
       if (node->contains(key) && (*node)[key].is_string()) {
-        auto blob = io::hex_to_bytes((*node)[key].get_ref<const std::string&>(), path + ": \"" + key + "\"");
-        if (j.is_object() && j.contains("scheduled_model"))
-          if (const std::string why = blob_contradicts_schedule(blob, j["scheduled_model"]); !why.empty())
-            throw io::InputError(path + ": \"" + key + "\" contradicts \"scheduled_model\" (" + why +
-                                 "): the file was edited after `btsm reduce` wrote it; reduce again, or flash a blob file");
-        return blob;
+        return checked_against_table(io::hex_to_bytes((*node)[key].get_ref<const std::string&>(), path + ": \"" + key + "\""), j,
+                                     path, std::string("\"") + key + "\"");
       }
     for (const char* key : {"blob_file", "blob_path", "file", "path"}) {
       if (node->contains(key) && (*node)[key].is_string()) {
         std::filesystem::path p = (*node)[key].get<std::string>();
         if (p.is_relative()) p = std::filesystem::path(path).parent_path() / p;
-        return read_blob_file(p.string());
+        return checked_against_table(read_blob_file(p.string()), j, path, std::string("\"") + key + "\" (" + p.string() + ")");
       }
     }
   }

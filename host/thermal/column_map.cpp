@@ -17,6 +17,9 @@ std::vector<int> measurement_columns(const Network& net, const Recording& rec) {
   for (const auto& m : net.measurements) {
     const int c = rec.channel_index(m.column);
     if (c < 0) {
+      if (const std::string why = reserved_column_problem(m.column); !why.empty())
+        throw std::invalid_argument(rec.source + ": column '" + m.column + "' (measures node '" +
+                                    net.nodes[static_cast<std::size_t>(m.node)].name + "') " + why);
       std::string have;
       for (const auto& ch : rec.channels) have += " " + ch;
       throw std::invalid_argument(rec.source + ": no column '" + m.column + "' (measures node '" +

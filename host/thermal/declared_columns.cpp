@@ -75,6 +75,8 @@ void check_declared_columns(const Recording& rec) {
     for (const auto& x : e)
       if (x == c) throw io::InputError(rec.source + ": column '" + c + "' is declared both as a boundary and as an event");
     const int j = rec.channel_index(c);
+    if (const std::string why = reserved_column_problem(c); !why.empty())
+      throw io::InputError(rec.source + ": declared boundary column '" + c + "' " + why);
     if (j < 0) throw io::InputError(rec.source + ": declared boundary column '" + c + "' is not in the header");
     for (Eigen::Index k = 0; k < rec.temp_c.rows(); ++k)
       if (!std::isfinite(rec.temp_c(k, j)))
@@ -83,6 +85,8 @@ void check_declared_columns(const Recording& rec) {
   }
   for (const auto& c : e) {
     const int j = rec.channel_index(c);
+    if (const std::string why = reserved_column_problem(c); !why.empty())
+      throw io::InputError(rec.source + ": declared event column '" + c + "' " + why);
     if (j < 0) throw io::InputError(rec.source + ": declared event column '" + c + "' is not in the header");
     for (Eigen::Index k = 0; k < rec.temp_c.rows(); ++k) {
       const double v = rec.temp_c(k, j);

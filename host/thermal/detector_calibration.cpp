@@ -41,8 +41,11 @@ std::array<std::vector<double>, kModelChannels> replay_residuals(const ReducedMo
     if (columns[c].empty() || !model_predicts(q.schedule.enabled_mask, q.schedule.ambient_channel, static_cast<uint8_t>(j)))
       continue;
     col[j] = rec.channel_index(columns[c]);
-    if (col[j] < 0)
+    if (col[j] < 0) {
+      if (const std::string why = reserved_column_problem(columns[c]); !why.empty())
+        throw std::invalid_argument(rec.source + ": column '" + columns[c] + "' for channel " + std::to_string(j + 1) + " " + why);
       throw std::invalid_argument(rec.source + ": no column '" + columns[c] + "' for channel " + std::to_string(j + 1));
+    }
   }
   if (rec.rows() == 0) return out;
   const double dt = q.schedule.dt_ms * 1e-3;

@@ -1,6 +1,8 @@
 // Double-precision reference of the module's model and its quantizer.
 #include "model_reference.hpp"
 
+#include "common/wire_messages.hpp"
+
 #include <cmath>
 #include <cstring>
 
@@ -28,6 +30,14 @@ bool to_int(double v, double scale, int64_t lo, int64_t hi, int64_t& out) {
 }
 
 }  // namespace
+
+uint8_t role_for_node(const std::string& node_name) {
+  for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r) {
+    const char* name = wire::channel_role_name(r);
+    if (wire::is_thermal_role(r) && name != nullptr && node_name == name) return r;
+  }
+  return kModelRoleUnchecked;
+}
 
 double evidence_units(double K_min, uint16_t dt_ms) {
   // K min -> mK samples: x 1000 mK/K x (60000 / dt_ms) samples per minute.
@@ -93,7 +103,7 @@ void step(const ReducedModelF64& m, ReducedModelF64State& st, double speed_rpm, 
   st.stopped_s = speed_rpm > 0.0 ? 0.0 : st.stopped_s + m.dt_ms * 1e-3;
 }
 
-ModelCheck quantize(const ReducedModelF64& f, ReducedModel& out) {
+ModelCheck quantize_fields(const ReducedModelF64& f, ReducedModel& out) {
   std::memset(&out, 0, sizeof(out));
   out.version = kReducedModelVersion;
   ModelSchedule& s = out.schedule;
@@ -156,7 +166,12 @@ ModelCheck quantize(const ReducedModelF64& f, ReducedModel& out) {
     l.low_warn_evidence = static_cast<uint16_t>(low);
     l.max_rise_mK_per_min = static_cast<uint16_t>(rise);
   }
-  return validate(out);
+  return model_check(ModelStatus::kOk);
+}
+
+ModelCheck quantize(const ReducedModelF64& f, ReducedModel& out) {
+  const ModelCheck c = quantize_fields(f, out);
+  return c.ok() ? validate(out) : c;
 }
 
 }  // namespace btsm::thermal

@@ -5,6 +5,7 @@
 #include "common/model_blob.hpp"
 
 #include <cstdint>
+#include <string>
 
 namespace btsm::thermal {
 
@@ -56,9 +57,17 @@ ChannelUpdate channel_update(const ReducedModelF64& m, int j, double speed_rpm, 
 // Every channel at the ambient (a cold machine), long stopped.
 void init_at_ambient(const ReducedModelF64& m, ReducedModelF64State& st, double ambient_c);
 
+// The module role code of a node name (a wire role name such as "rear_bearing"), else
+// kModelRoleUnchecked: the channel map `reduce` writes into the blob for the channel of that node.
+uint8_t role_for_node(const std::string& node_name);
+
 // Converts to the blob's fixed point and validates. On error `out` is unspecified and the check
 // names the status and the breakpoint/channel at fault.
 ModelCheck quantize(const ReducedModelF64& f, ReducedModel& out);
+// quantize() without validate(): only each field's conversion and range (a pole in [0, 1), a limit
+// within the probes' range, a value that fits its field). Lets a table that was edited into an
+// invalid model (a 100 K gain: steady rise > 1000 K) still be encoded and compared field by field.
+ModelCheck quantize_fields(const ReducedModelF64& f, ReducedModel& out);
 
 // The evidence threshold units of the blob for `K_min` K x minutes at sample period dt_ms.
 double evidence_units(double K_min, uint16_t dt_ms);

@@ -70,7 +70,8 @@ double parse_number(const std::string& cell, bool allow_empty, const std::string
   double v = 0.0;
   const char* first = cell.data();
   const char* last = cell.data() + cell.size();
-  if (*first == '+') ++first;  // from_chars rejects a leading '+'
+  // from_chars rejects a leading '+': skip it, but only before a number ("+-20" then read as -20)
+  if (*first == '+' && last - first > 1 && first[1] != '-') ++first;
   auto [ptr, ec] = std::from_chars(first, last, v);
   if (ec == std::errc::result_out_of_range && ptr == last) {
     // A well-formed number beyond a double: one too small to hold (1e-400) is 0 for any
@@ -110,6 +111,16 @@ double check_temperature(double v, const std::string& cell, const std::string& s
 }
 
 }  // namespace
+
+std::string reserved_column_problem(const std::string& column) {
+  const char* what = column == "time_s"      ? "the recording's time (s)"
+                     : column == "speed_rpm" ? "the spindle speed (rpm)"
+                     : column == "ambient_c" ? "the ambient temperature, the network's boundary, always used as such"
+                                             : nullptr;
+  if (what == nullptr) return "";
+  return std::string("is reserved: ") + what +
+         " (time_s, speed_rpm and ambient_c are the first three columns of every recording, never a temperature column)";
+}
 
 int Recording::channel_index(const std::string& name) const {
   for (std::size_t i = 0; i < channels.size(); ++i)

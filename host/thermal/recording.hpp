@@ -47,6 +47,12 @@ constexpr double kMinRecordedStepS = 1.0e-3;
 // Size cap of a recording file (about 4 million rows of 5 channels), stated in the error.
 constexpr std::size_t kMaxRecordingBytes = std::size_t{256} << 20;
 
+// "" unless `column` is one of the three columns every recording has before its temperature
+// columns (time_s, speed_rpm, ambient_c); then why it cannot be a temperature column (measured,
+// boundary or event), for a message of the form "column 'time_s' ... is reserved: ...". Without it
+// such a column was reported as "no column 'time_s'", and the user looked for a typo.
+std::string reserved_column_problem(const std::string& column);
+
 // "" or a warning naming the recording's longest gap between rows when it is both over an hour
 // and more than 100 times the rows' usual (median) spacing: a model replayed over the recording runs
 // through it with the speed and ambient of the row before held, which a logger that was off did not

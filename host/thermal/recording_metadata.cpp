@@ -5,6 +5,9 @@
 #include "declared_columns.hpp"
 #include "host/io/input_error.hpp"
 
+#include <fmt/core.h>
+
+#include <algorithm>
 #include <sstream>
 #include <stdexcept>
 
@@ -35,6 +38,34 @@ std::string single_value(const Recording& rec, const char* key) {
   return value;
 }
 
+// The module's channels, as record writes them: the only columns channel_roles and ambient_channel
+// can name.
+bool is_module_channel(const std::string& column) {
+  return column.size() == 2 && column[0] == 'T' && column[1] >= '1' && column[1] <= '5';
+}
+
+constexpr const char* kActedOnKeys[] = {"channel_roles", "ambient_channel", "boundary_columns", "event_columns"};
+
+// The key a metadata line's start looks like: blanks and further '#' dropped, the words before
+// anything but a letter, digit, '_', '-' or blank, lower case, '-' and blanks as '_'.
+// "## channel_roles" -> "channel_roles", "channel-roles" -> "channel_roles", and "channel_roles =
+// T1=..." (no colon: all of it is the key) -> "channel_roles".
+std::string key_it_looks_like(const std::string& key) {
+  std::string k = trimmed(key.substr(std::min(key.find_first_not_of("# \t"), key.size())));
+  const auto end = k.find_first_not_of("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789_- \t");
+  k = trimmed(k.substr(0, end));
+  for (char& c : k) c = c == '-' || c == ' ' || c == '\t' ? '_' : static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+  return k;
+}
+
+// A metadata line as the file held it (near enough: the reader trimmed it), cut for a message.
+std::string shown_line(const std::string& key, const std::string& value) {
+  std::string line = key.rfind('#', 0) == 0 ? "#" : "# ";
+  line += key;
+  if (!value.empty()) line.append(": ").append(value);
+  return line.size() > 80 ? line.substr(0, 77) + "..." : line;
+}
+
 }  // namespace
 
 std::vector<std::pair<std::string, std::string>> channel_roles(const Recording& rec) {
@@ -50,6 +81,8 @@ std::vector<std::pair<std::string, std::string>> channel_roles(const Recording& 
     if (eq == std::string::npos || eq == 0 || eq + 1 == item.size())
       bad(rec, kKey, "entry '" + item + "' is not COLUMN=ROLE (e.g. T1=rear_bearing)");
     const std::string column = trimmed(item.substr(0, eq)), role = trimmed(item.substr(eq + 1));
+    // as ambient_channel: a role on a channel the module does not have was ignored
+    if (!is_module_channel(column)) bad(rec, kKey, "entry '" + item + "': '" + column + "' is not a module channel (T1..T5)");
     const int r = wire::channel_role_from_name(role.c_str());  // -1 also for the "unknown" `btsm record` writes
     if (r < 0 && role != "unknown") {
       std::string known;
@@ -77,7 +110,7 @@ std::string ambient_channel(const Recording& rec) {
       if (k == kKey) bad(rec, kKey, "is empty: name the ambient channel (T1..T5), or delete the line if the module has none");
     return ch;
   }
-  if (!(ch.size() == 2 && ch[0] == 'T' && ch[1] >= '1' && ch[1] <= '5'))
+  if (!is_module_channel(ch))
     bad(rec, kKey, "'" + ch + "' is not a module channel (T1..T5)");
   for (const auto& [column, role] : channel_roles(rec)) {
     if (column == ch && role != "ambient") bad(rec, kKey, ch + " has the role '" + role + "' in channel_roles, not ambient");
@@ -92,12 +125,35 @@ void check_recording_metadata(const Recording& rec) {
   for (const auto& [k, v] : rec.meta) {
     std::string lower = k;
     for (char& c : lower) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
-    for (const char* known : {"channel_roles", "ambient_channel", "boundary_columns", "event_columns"})
+    for (const char* known : kActedOnKeys)
       if (lower == known && k != known) bad(rec, k, std::string("keys are lower case: write '# ") + known + ":'");
   }
   check_declared_columns(rec);
   (void)channel_roles(rec);
   (void)ambient_channel(rec);
+}
+
+std::vector<std::string> metadata_warnings(const Recording& rec) {
+  std::vector<std::string> out;
+  for (const auto& [k, v] : rec.meta) {
+    const std::string looks = key_it_looks_like(k);
+    std::string lower = k;
+    for (char& c : lower) c = static_cast<char>(c >= 'A' && c <= 'Z' ? c - 'A' + 'a' : c);
+    for (const char* known : kActedOnKeys)
+      if (looks == known && k != known && lower != known) {  // another case only is refused (check_recording_metadata)
+        out.push_back(fmt::format("{}: the line '{}' is not read as '# {}:' (write '# {}: ...': one '#', the key, a colon): "
+                                  "what it says is ignored",
+                                  rec.source, shown_line(k, v), known, known));
+      }
+  }
+  return out;
+}
+
+std::vector<std::string> reading_warnings(const Recording& rec) {
+  std::vector<std::string> out;
+  if (std::string gap = long_gap_warning(rec); !gap.empty()) out.push_back(std::move(gap));
+  for (auto& w : metadata_warnings(rec)) out.push_back(std::move(w));
+  return out;
 }
 
 }  // namespace btsm::thermal

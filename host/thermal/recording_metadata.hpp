@@ -33,4 +33,13 @@ std::string ambient_channel(const Recording& rec);
 // Every check of this header and declared_columns.hpp; read_recording_csv() runs it.
 void check_recording_metadata(const Recording& rec);
 
+// One warning per metadata line that looks like a key above but is not read as it ("# channel_roles
+// = ...", "## channel_roles: ...", "# channel-roles: ...", "# ambient channel: T4"), quoting the
+// line: what it says is ignored. Not refused: a '#' line may be a comment saying anything.
+std::vector<std::string> metadata_warnings(const Recording& rec);
+
+// What a command says about a recording it read and took: its long gap (long_gap_warning) and
+// metadata_warnings.
+std::vector<std::string> reading_warnings(const Recording& rec);
+
 }  // namespace btsm::thermal

@@ -160,14 +160,6 @@ double matching_pole(const NodeResponse& y, double t0, double t1) {
 
 }  // namespace
 
-uint8_t role_for_node(const std::string& node_name) {
-  for (uint8_t r = 0; r < wire::kChannelRoleCount; ++r) {
-    const char* name = wire::channel_role_name(r);
-    if (wire::is_thermal_role(r) && name != nullptr && node_name == name) return r;
-  }
-  return kModelRoleUnchecked;
-}
-
 SpeedReduction reduce_with_inputs(const Network& net, const Eigen::VectorXd& params, double speed,
                                   const Eigen::MatrixXd& E) {
   const NodeMatrices m = assemble(net, params, speed);

@@ -153,8 +153,4 @@ ScheduledReduction build_scheduled_model(const Network& net, const Eigen::Vector
 void requantize(ScheduledReduction& r);
 nlohmann::json reduction_to_json(const Network& net, const ScheduledReduction& r, const ReduceOptions& opts);
 
-// The module role code of a node name (a wire role name such as "rear_bearing"), else
-// kModelRoleUnchecked.
-uint8_t role_for_node(const std::string& node_name);
-
 }  // namespace btsm::thermal

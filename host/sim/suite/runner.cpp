@@ -121,25 +121,33 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
   std::vector<Child> running;
   size_t next = 0, done = 0;
   const int jobs = std::max(1, opts.jobs);
+  // Every field the scoring reads, checked and named before a case is run or scored: a bad
+  // truth.json is refused (exit 2), not scored, and costs no residual run.
+  const auto checked_truth = [&](const SuiteCase& c) {
+    const fs::path path = fs::path(dir_of(c)) / "truth.json";
+    const nlohmann::json truth = read_json(path);
+    if (const std::string why = truth_problem(truth, c); !why.empty()) throw io::InputError(path.string() + ": " + why);
+    try {
+      (void)failed_case(truth, "", 0);
+    } catch (const nlohmann::json::exception& e) {
+      throw io::InputError(path.string() + ": not a case's truth: " + io::without_json_exception_ids(e.what()));
+    }
+    return truth;
+  };
   const auto finish = [&](const Child& ch, int status, bool timed_out) {
     const SuiteCase& c = cases[ch.index];
     const fs::path dir = dir_of(c);
     const double secs = std::chrono::duration<double>(Clock::now() - ch.started).count();
-    const nlohmann::json truth = read_json(dir / "truth.json");
-    try {  // every field the scoring reads, checked once: a bad truth.json is named, not a bare key error
-      (void)failed_case(truth, "", 0);
-    } catch (const nlohmann::json::exception& e) {
-      throw io::InputError((dir / "truth.json").string() + ": not a case's truth: " + e.what());
-    }
+    const nlohmann::json truth = checked_truth(c);
     // A reused answer runs nothing, but its truth is held to what a run would check: its run files in
     // the case's folder (residual_command, which a run already went through before it was started),
     // and a kind the scoring knows ("bogus" counted as quiet).
     if (ch.pid < 0) (void)residual_command(opts.btsm_path.empty() ? std::string("btsm") : opts.btsm_path, dir.string(), {});
-    // the row is named by the truth's id: one that is not the case's folder scored another case's row (probe 5)
-    if (const std::string id = truth.at("id").get<std::string>(); id != c.id)
-      throw io::InputError((dir / "truth.json").string() + ": id '" + id + "' is not the case's folder '" + c.id + "'");
-    if (const std::string kind = truth.at("kind").get<std::string>(); kind != "effect" && kind != "clean" && kind != "distractor")
-      throw io::InputError((dir / "truth.json").string() + ": kind '" + kind + "' is not effect, clean or distractor");
+    // A reused answer is an input like the truth (no run made it here): one the scoring cannot take
+    // is refused, naming file and key, instead of being counted as a case without an answer.
+    if (ch.pid < 0)
+      if (const std::string why = answer_shape_problem(read_json(dir / "residual.json")); !why.empty())
+        throw io::InputError((dir / "residual.json").string() + ": " + why + "; not an answer to reuse (remove it to run the case again)");
     CaseResult r;
     std::error_code rename_error;
     std::string not_an_answer;  // a child that exited 0 but printed no residual answer (another program as --btsm)
@@ -150,7 +158,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
         try {
           not_an_answer = answer_shape_problem(read_json(answer_part(dir)));
         } catch (const std::exception& e) {
-          not_an_answer = e.what();
+          not_an_answer = io::without_json_exception_ids(e.what());
         }
       }
       if (exited_ok && not_an_answer.empty())
@@ -179,7 +187,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
         const double reported = answer.contains("seconds") && answer["seconds"].is_number() ? answer["seconds"].get<double>() : secs;
         r = score_case(truth, answer, ch.pid < 0 ? reported : secs);
       } catch (const std::exception& e) {
-        r = failed_case(truth, std::string("unreadable residual.json: ") + e.what(), secs);
+        r = failed_case(truth, std::string("unreadable residual.json: ") + io::without_json_exception_ids(e.what()), secs);
       }
     }
     results[ch.index] = r;
@@ -189,16 +197,20 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
                     c.kind == CaseKind::Effect ? (r.named ? ", named" : ", NOT named") : (r.claimed ? ", FALSE CLAIM" : ""),
                     r.residual_s));
   };
-  // An answer already on disk (reuse_answers): newer than the recordings and a complete JSON.
+  // An answer already on disk (reuse_answers): newer than the recordings and holding a verdict.
+  // One that is no JSON (cut short, a key twice) was run again and overwritten without a word; a
+  // run never leaves one (it writes a part file and renames it), so it is named instead.
   const auto has_answer = [&](const fs::path& dir) {
     const fs::path answer = dir / "residual.json", truth = dir / "truth.json";
     std::error_code ec;
     if (!fs::exists(answer, ec) || fs::last_write_time(answer, ec) < fs::last_write_time(truth, ec)) return false;
+    nlohmann::json j;
     try {
-      return read_json(answer).contains("verdict");
-    } catch (const std::exception&) {
-      return false;
+      j = read_json(answer);
+    } catch (const std::invalid_argument& e) {
+      throw io::InputError(std::string(e.what()) + "; not an answer to reuse (remove it to run the case again)");
     }
+    return j.is_object() && j.contains("verdict");
   };
   while (done < cases.size()) {
     while (opts.reuse_answers && next < cases.size() && has_answer(dir_of(cases[next]))) {
@@ -208,6 +220,7 @@ SuiteReport run_suite(const std::vector<SuiteCase>& cases, const RunnerOptions& 
     while (int(running.size()) < jobs && next < cases.size()) {
       if (opts.reuse_answers && has_answer(dir_of(cases[next]))) break;  // scored by the loop above
       const fs::path dir = dir_of(cases[next]);
+      (void)checked_truth(cases[next]);
       const auto argv = residual_command(opts.btsm_path, dir.string(), opts.residual_args);
       running.push_back({next, spawn(argv, answer_part(dir).string(), (dir / "residual.log").string()), Clock::now()});
       ++next;

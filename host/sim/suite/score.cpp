@@ -1,5 +1,8 @@
 #include "host/sim/suite/score.hpp"
 
+#include "host/io/input_error.hpp"
+#include "host/io/json_input.hpp"
+
 #include <fmt/core.h>
 
 #include <algorithm>
@@ -29,10 +32,40 @@ CaseResult from_truth(const nlohmann::json& truth, double residual_s) {
   r.family = truth.at("family").get<std::string>();
   r.variant = truth.at("variant").get<std::string>();
   r.truth_nodes = truth.at("nodes").get<std::vector<std::string>>();
-  r.noise_floor_k = truth.value("noise_floor_check_K", NAN);
+  r.noise_floor_k = truth.contains("noise_floor_check_K") && truth["noise_floor_check_K"].is_number()
+                        ? truth["noise_floor_check_K"].get<double>()
+                        : NAN;
   r.goal_factor = truth.value("goal_factor", 5.0);
   r.residual_s = residual_s;
   return r;
+}
+
+// A node's name as the networks hold it: no control character (an ESC sequence or a newline
+// would go raw to the terminal and table.md), no ',' or '=', not empty.
+std::string node_name_problem(const nlohmann::json& n) {
+  if (!n.is_string() || n.get_ref<const std::string&>().empty()) return "not a node name";
+  if (const std::string why = io::name_problem(n.get<std::string>()); !why.empty()) return "not a node name (it " + why + ")";
+  return "";
+}
+
+std::string node_list_problem(const nlohmann::json& j, const char* key) {
+  if (!j.contains(key)) return "";
+  if (!j[key].is_array()) return fmt::format("'{}' is not a list", key);
+  for (const auto& n : j[key])
+    if (const std::string why = node_name_problem(n); !why.empty())
+      return fmt::format("'{}' holds {}, {}", key, io::json_excerpt(n), why);
+  return "";
+}
+
+// The largest check RMSE an answer can hold: the probes read -200..850 degC, so no recording's
+// error comes near it (1e308 was printed as a 309-digit number in the table).
+constexpr double kMaxRmseK = 1e4;
+
+std::string string_key_problem(const nlohmann::json& truth, const char* key, const std::string& expected) {
+  if (!truth.contains(key) || !truth[key].is_string()) return fmt::format("'{}' is missing or not text", key);
+  if (truth[key].get_ref<const std::string&>() != expected)
+    return fmt::format("{} '{}' is not the case's {} '{}'", key, truth[key].get<std::string>(), key, expected);
+  return "";
 }
 
 std::string fmt_k(double v) { return std::isfinite(v) ? fmt::format("{:.4f}", v) : "–"; }
@@ -69,13 +102,58 @@ std::string answer_shape_problem(const nlohmann::json& answer) {
       for (const auto& name : accepted_names(f)) known = known || e == name;
     if (!known) return "'effect' is '" + e + "', not a family the residual loop names";
   }
-  if (answer.contains("nodes")) {
-    if (!answer["nodes"].is_array()) return "'nodes' is not a list";
-    for (const auto& n : answer["nodes"])
-      if (!n.is_string()) return "'nodes' holds an entry that is not a node name";
+  if (const std::string why = node_list_problem(answer, "nodes"); !why.empty()) return why;
+  for (const char* k : {"rmse_before_K", "rmse_after_K"}) {
+    if (!answer.contains(k) || answer[k].is_null()) continue;
+    if (!answer[k].is_number()) return std::string("'") + k + "' is not a number";
+    if (const double v = answer[k].get<double>(); !(v >= 0 && v <= kMaxRmseK))
+      return fmt::format("'{}' is {}, not an RMSE (0..{:g} K)", k, io::json_excerpt(answer[k]), kMaxRmseK);
   }
-  for (const char* k : {"rmse_before_K", "rmse_after_K"})
-    if (answer.contains(k) && !answer[k].is_number() && !answer[k].is_null()) return std::string("'") + k + "' is not a number";
+  if (answer.contains("seconds") && !answer["seconds"].is_null() &&
+      !(answer["seconds"].is_number() && answer["seconds"].get<double>() >= 0))
+    return "'seconds' is " + io::json_excerpt(answer["seconds"]) + ", not a run time (a number >= 0)";
+  return "";
+}
+
+std::string truth_problem(const nlohmann::json& truth, const SuiteCase& c) {
+  if (!truth.is_object()) return "not a JSON object";
+  // id, kind, family and variant follow from the case's folder (its id): they name the table's rows
+  if (!truth.contains("id") || !truth["id"].is_string()) return "'id' is missing or not text";
+  if (truth["id"].get_ref<const std::string&>() != c.id)
+    return fmt::format("id '{}' is not the case's folder '{}'", truth["id"].get<std::string>(), c.id);
+  if (!truth.contains("kind") || !truth["kind"].is_string()) return "'kind' is missing or not text";
+  if (const std::string kind = truth["kind"].get<std::string>(); kind != case_kind_name(c.kind))
+    return fmt::format("kind '{}' is not case {}'s kind '{}' (effect, clean or distractor)", kind, c.id, case_kind_name(c.kind));
+  for (const auto& [key, expected] : {std::pair{"family", &c.family}, std::pair{"variant", &c.variant}})
+    if (const std::string why = string_key_problem(truth, key, *expected); !why.empty()) return why;
+  if (truth.contains("accepted_names")) {
+    const auto& names = truth["accepted_names"];
+    const auto family_names = accepted_names(c.family);
+    std::string listed;
+    for (const auto& n : family_names) listed += (listed.empty() ? "" : ", ") + n;
+    if (!names.is_array()) return "'accepted_names' is not a list";
+    for (const auto& n : names)
+      if (!n.is_string() || std::find(family_names.begin(), family_names.end(), n.get<std::string>()) == family_names.end())
+        return fmt::format("'accepted_names' holds {}, not a name of family '{}' (the residual loop names it {})", io::json_excerpt(n),
+                           c.family, listed);
+  }
+  for (const char* key : {"nodes", "nodes_allowed"}) {
+    if (!truth.contains(key)) return fmt::format("'{}' is missing", key);
+    if (const std::string why = node_list_problem(truth, key); !why.empty()) return why;
+  }
+  for (const auto& n : truth["nodes"])
+    if (std::find(truth["nodes_allowed"].begin(), truth["nodes_allowed"].end(), n) == truth["nodes_allowed"].end())
+      return fmt::format("'nodes' holds {}, which 'nodes_allowed' does not (no answer could be named)", io::json_excerpt(n));
+  if (truth.contains("nodes_matter") && !truth["nodes_matter"].is_boolean()) return "'nodes_matter' is not true or false";
+  if (truth.contains("goal_factor") &&
+      !(truth["goal_factor"].is_number() && truth["goal_factor"].get<double>() > 1 && truth["goal_factor"].get<double>() <= 1e6))
+    return fmt::format("'goal_factor' is {}, not a cut of the check RMSE (a number > 1; at <= 1 every answer meets the goal)",
+                       io::json_excerpt(truth["goal_factor"]));
+  if (truth.contains("noise_floor_check_K") && !truth["noise_floor_check_K"].is_null() &&
+      !(truth["noise_floor_check_K"].is_number() && truth["noise_floor_check_K"].get<double>() >= 0 &&
+        truth["noise_floor_check_K"].get<double>() <= kMaxRmseK))
+    return fmt::format("'noise_floor_check_K' is {}, not a noise floor (0..{:g} K)", io::json_excerpt(truth["noise_floor_check_K"]),
+                       kMaxRmseK);
   return "";
 }
 

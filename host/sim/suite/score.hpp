@@ -38,9 +38,17 @@ struct CaseResult {
 CaseResult score_case(const nlohmann::json& truth, const nlohmann::json& answer, double residual_s);
 // "" when `answer` has the shape of `btsm residual --json` as far as scoring reads it (an object;
 // verdict one of effect/partial/none/unexplained (or, from a loop before verdicts, an effect name); effect a string; nodes a list of names;
-// rmse_before_K/rmse_after_K numbers or null), else what is wrong: {"verdict":5} or
-// "effects":"x" were scored as if meant.
+// rmse_before_K/rmse_after_K numbers 0..10000 K or null, seconds a number >= 0), else what is
+// wrong: {"verdict":5}, "effects":"x", a node name holding ESC [ 2 J or a newline (printed raw in
+// the progress line) or an RMSE of -5 K were scored as if meant.
 std::string answer_shape_problem(const nlohmann::json& answer);
+// "" when `truth` (a case's truth.json) is the truth of case `c` as far as scoring reads it, else
+// what is wrong, naming the key: truth.json is our own file, so a hand edit that would change the
+// score or reach the terminal and table.md is refused -- an id, kind, family or variant other than
+// the case's (the table prints them), accepted_names outside the family's, nodes that are no plain
+// node names, a goal_factor that is no cut (<= 1: every answer would meet the goal), a negative
+// noise floor.
+std::string truth_problem(const nlohmann::json& truth, const SuiteCase& c);
 // A case whose run failed (no JSON): counted, never named or claimed.
 CaseResult failed_case(const nlohmann::json& truth, const std::string& error, double residual_s);
 

@@ -275,6 +275,50 @@ TEST(EffectSuiteScore, AnAnswerOfAnotherShapeIsNamedNotScored) {
     EXPECT_NE(answer_shape_problem(bad).find(says), std::string::npos) << bad.dump() << ": " << answer_shape_problem(bad);
 }
 
+// The seventh probe: hand-made answers with a node name holding ESC [ 2 J and a newline (printed
+// raw in the progress line), a negative RMSE (scored as a cut) or 1e308 K were taken.
+TEST(EffectSuiteScore, AnAnswerWithNamesOrNumbersNoRunGivesIsNamed) {
+  for (const auto& [bad, says] : std::vector<std::pair<nlohmann::json, std::string>>{
+           {answer("effect", "sensor_lag", {"rear_bearing", "\x1b[2J\nfake line"}, 0.3, 0.01),
+            "'nodes' holds \"\\u001b[2J\\nfake line\", not a node name (it contains a control character)"},
+           {answer("effect", "sensor_lag", {""}, 0.3, 0.01), "not a node name"},
+           {answer("effect", "sensor_lag", {"housing"}, -1.0, -5.0), "'rmse_before_K' is -1.0, not an RMSE (0..10000 K)"},
+           {answer("effect", "sensor_lag", {"housing"}, 1.0, 1e308), "'rmse_after_K' is 1e+308, not an RMSE"},
+           {{{"verdict", "none"}, {"seconds", -3}}, "'seconds' is -3, not a run time"}})
+    EXPECT_NE(answer_shape_problem(bad).find(says), std::string::npos) << bad.dump() << ": " << answer_shape_problem(bad);
+}
+
+// ... and hand-made truths: a family with ESC [ 2 J (raw in the table and table.md), accepted_names
+// of another family (scored with them), goal_factor -1 (every answer met the goal).
+TEST(EffectSuiteScore, ATruthThatIsNotTheCasesIsNamed) {
+  SuiteCase c;
+  c.id = "t";
+  c.family = "temperature_dependent_heat";
+  c.variant = "rising";
+  c.nodes = c.nodes_allowed = {"rear_bearing"};
+  const nlohmann::json good = to_json(c);
+  EXPECT_EQ(truth_problem(good, c), "");
+  const auto edited = [&](const char* key, const nlohmann::json& v) {
+    nlohmann::json t = good;
+    t[key] = v;
+    return truth_problem(t, c);
+  };
+  for (const auto& [why, says] : std::vector<std::pair<std::string, std::string>>{
+           {edited("family", "temperature_dependent_heat\x1b[2J"), "family 'temperature_dependent_heat\x1b[2J' is not the case's family"},
+           {edited("variant", "falling"), "variant 'falling' is not the case's variant 'rising'"},
+           {edited("kind", "clean"), "kind 'clean' is not case t's kind 'effect'"},
+           {edited("id", "u"), "id 'u' is not the case's folder 't'"},
+           {edited("accepted_names", {"sensor_lag"}), "'accepted_names' holds \"sensor_lag\", not a name of family 'temperature_dependent_heat'"},
+           {edited("nodes", {"rear_bearing\n| fake |"}), "'nodes' holds \"rear_bearing\\n| fake |\", not a node name"},
+           {edited("nodes", {"housing"}), "'nodes' holds \"housing\", which 'nodes_allowed' does not"},
+           {edited("goal_factor", -1), "'goal_factor' is -1, not a cut of the check RMSE"},
+           {edited("goal_factor", 1), "'goal_factor' is 1, not a cut"},
+           {edited("goal_factor", nullptr), "'goal_factor' is null"},
+           {edited("noise_floor_check_K", -0.1), "'noise_floor_check_K' is -0.1, not a noise floor"},
+           {edited("nodes_matter", "yes"), "'nodes_matter' is not true or false"}})
+    EXPECT_NE(why.find(says), std::string::npos) << why;
+}
+
 // A case's runs are files in its folder: a truth.json naming "../../../etc/passwd" was handed to residual.
 TEST(EffectSuiteRunner, RunFilesOutsideTheCaseFolderAreRefused) {
   const std::string dir = testing::TempDir() + "/suite_case_paths";

@@ -3,10 +3,13 @@
 #include "host/thermal/fit.hpp"
 #include "host/thermal/network.hpp"
 #include "host/thermal/recording.hpp"
+#include "host/thermal/recording_metadata.hpp"
 
 #include <gtest/gtest.h>
 
 #include <stdexcept>
+#include <string>
+#include <vector>
 
 namespace th = btsm::thermal;
 
@@ -244,6 +247,33 @@ TEST(ColumnMap, ContradictoryRoleMetadataIsRefusedWhenRead) {
   EXPECT_NO_THROW(read("# channel_roles: T1=rear_bearing,T2=spare,T3=spare,T4=ambient,T5=disabled\n# ambient_channel: T4\n"));
   EXPECT_NO_THROW(read("# channel_roles: T1=unknown,T2=unknown,T4=ambient\n"));
   EXPECT_NO_THROW(read("# channel_roles: T1=housing,T2=housing (firmware defaults, not read from the module)\n"));
+  // A role on a channel the module does not have was ignored, while "# ambient_channel: T9" was
+  // refused (probe 7, P3-g): refused alike.
+  EXPECT_NE(message("# channel_roles: T1=rear_bearing,T4=ambient,T9=shaft\n").find("entry 'T9=shaft': 'T9' is not a module channel (T1..T5)"),
+            std::string::npos);
+}
+
+// "# channel_roles = ...", "## channel_roles: ..." and "# channel-roles: ..." were read as other
+// keys and ignored without a word, so swapped probes in them were scored (probe 7, P3-f). A '#'
+// line may be a comment, so they are not refused: each is warned about, quoting the line.
+TEST(ColumnMap, MetadataLinesThatLookLikeAKeyAreWarnedAbout) {
+  auto warnings = [](const std::string& meta) {
+    return th::metadata_warnings(th::parse_recording_csv(meta + "time_s,speed_rpm,ambient_c,T1,T2\n0,6000,20,21,22\n", "m.csv"));
+  };
+  const std::string roles = "T1=housing,T2=rear_bearing";
+  for (const std::string& line : std::vector<std::string>{"# channel_roles = " + roles, "## channel_roles: " + roles, "# channel-roles: " + roles,
+                                  "# Channel roles: " + roles, "#  ambient channel: T4"}) {
+    const auto w = warnings(line + "\n");
+    ASSERT_EQ(w.size(), 1u) << line;
+    EXPECT_NE(w[0].find("m.csv: the line '"), std::string::npos) << w[0];
+    EXPECT_NE(w[0].find("what it says is ignored"), std::string::npos) << w[0];
+  }
+  EXPECT_NE(warnings("## channel_roles: " + roles + "\n")[0].find("'## channel_roles: T1=housing,T2=rear_bearing' is not read as '# channel_roles:'"),
+            std::string::npos);
+  // the keys themselves, with or without blanks, and comments that only mention them, say nothing
+  for (const std::string& line : std::vector<std::string>{"# channel_roles: " + roles, "#channel_roles:" + roles, "# channel roles were swapped on 3 Nov",
+                                  "# source: btsm record", "# note: channel_roles checked"})
+    EXPECT_TRUE(warnings(line + "\n").empty()) << line;
 }
 
 }  // namespace

@@ -1,5 +1,6 @@
 // Declared inputs: a second boundary column and 0/1 event columns, from the recording's metadata
 // (or the command line) to the network JSON, the node matrices and the exact simulator.
+#include "host/thermal/column_map.hpp"
 #include "host/thermal/declared_columns.hpp"
 #include "host/thermal/heat_inverse.hpp"
 #include "host/thermal/network.hpp"
@@ -9,6 +10,7 @@
 #include <gtest/gtest.h>
 
 #include <cmath>
+#include <functional>
 
 namespace btsm::thermal {
 namespace {
@@ -184,6 +186,34 @@ TEST(DeclaredColumns, ADeclaredColumnNeverMeasuresANode) {
   EXPECT_NO_THROW(check_measurements_not_declared(net, rec));
   net.measurements[0].column = "lid_open";
   EXPECT_THROW(check_measurements_not_declared(net, rec), std::invalid_argument);
+}
+
+// time_s, speed_rpm and ambient_c given where a temperature column belongs (a network measuring
+// one, --boundary time_s) were "no column 'time_s'" / "is not in the header": the user looked for a
+// typo in a column the header plainly has (probe 7, P3-d). They are named as reserved now.
+TEST(DeclaredColumns, AReservedColumnIsNamedAsReservedNotAsMissing) {
+  const auto refusal = [](const std::function<void()>& f) {
+    try {
+      f();
+    } catch (const std::invalid_argument& e) {
+      return std::string(e.what());
+    }
+    return std::string("accepted");
+  };
+  Recording rec = box_recording(5.0, 4, 0, 0);
+  rec.source = "box.csv";
+  const std::string b = refusal([&] { declare_columns(rec, {"time_s"}, {}); });
+  EXPECT_NE(b.find("box.csv: declared boundary column 'time_s' is reserved: the recording's time (s)"), std::string::npos) << b;
+  Recording rec2 = box_recording(5.0, 4, 0, 0);
+  rec2.source = "box.csv";
+  const std::string e = refusal([&] { declare_columns(rec2, {}, {"ambient_c"}); });
+  EXPECT_NE(e.find("declared event column 'ambient_c' is reserved: the ambient temperature"), std::string::npos) << e;
+  Network net = network_from_json(nlohmann::json::parse(kOneNode), "box.json");
+  net.measurements[0].column = "speed_rpm";
+  const std::string m = refusal([&] { (void)measurement_columns(net, rec2); });
+  EXPECT_NE(m.find("column 'speed_rpm' (measures node '"), std::string::npos) << m;
+  EXPECT_NE(m.find("is reserved: the spindle speed (rpm)"), std::string::npos) << m;
+  EXPECT_EQ(reserved_column_problem("T1"), "");
 }
 
 }  // namespace

@@ -68,6 +68,19 @@ TEST(RecordingCsv, NumbersBeyondADoubleAreZeroOrNamed) {
   EXPECT_NE(big.find("beyond the range of a number"), std::string::npos) << big;
 }
 
+// "+-20" was read as -20: the '+' was skipped and the rest read as a number (probe 7, P3-c). One
+// sign only; a single leading '+' before a number is still taken.
+TEST(RecordingCsv, ASignAfterAPlusIsABadNumber) {
+  for (const char* cell : {"+-20", "+-0", "+-1e3", "++20"}) {
+    const std::string why = error_of(std::string("time_s,speed_rpm,ambient_c,T1\n0,0,25,20\n5,0,25,") + cell + "\n");
+    EXPECT_NE(why.find(std::string("rec.csv:3:4: column 'T1': bad number '") + cell + "'"), std::string::npos) << cell << ": " << why;
+  }
+  const Recording r = parse_recording_csv("time_s,speed_rpm,ambient_c,T1\n0,+6000,+25,+20.5\n5,0,25,+.5\n", "plus.csv");
+  EXPECT_EQ(r.speed_rpm[0], 6000.0);
+  EXPECT_EQ(r.temp_c(0, 0), 20.5);
+  EXPECT_EQ(r.temp_c(1, 0), 0.5);
+}
+
 // Rows exactly the minimum step (1 ms) apart were refused ("0.009 is less than 0.001 s after
 // 0.008": the difference of the two binary times is 0.000999...); less than it still is.
 TEST(RecordingCsv, RowsExactlyTheMinimumStepApartAreKept) {
