@@ -419,12 +419,13 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
       bool staged = false, without_probe = false, other_base = false, from_data = false;
     };
     std::vector<Start> starts{{.p = p, .what = "base fit"}};
-    if (ctx.fit_base) starts.push_back({.p = p, .pinned = true, .what = "base refitted around the screening's effect"});
-    if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag)
+    const bool leave_basin = ctx.fit_base && ctx.basin_starts;  // (2), (4), (6), (7)
+    if (leave_basin) starts.push_back({.p = p, .pinned = true, .what = "base refitted around the screening's effect"});
+    if (leave_basin && p.spec.kind != EffectKind::SensorLag)
       starts.push_back({.p = p, .what = "staged fit of base + effect from the data", .staged = true});
-    if (ctx.fit_base && p.start_from_data && p.spec.kind != EffectKind::SensorLag)
+    if (leave_basin && p.start_from_data && p.spec.kind != EffectKind::SensorLag)
       starts.push_back({.p = p, .what = "staged fit of base + effect from the data alone, no base value given", .staged = true, .from_data = true});
-    if (ctx.fit_base && p.spec.kind != EffectKind::SensorLag && ctx.other_base_params.size() == base.param_count())
+    if (leave_basin && p.spec.kind != EffectKind::SensorLag && ctx.other_base_params.size() == base.param_count())
       starts.push_back({.p = p, .what = "staged fit from the base of " + ctx.other_base_from, .staged = true, .other_base = true});
     if (ctx.fit_base && p.spec.kind == EffectKind::SensorDrift)
       starts.push_back({.p = p, .what = "base fitted on the probe with the drift so far taken off", .without_probe = true});

@@ -25,6 +25,11 @@ struct CandidateContext {
   double base_bic = 0;
   std::vector<int> free_params;     // base parameters the refit may move (Proposal::base_shift order)
   bool fit_base = true;             // false: only the effect's parameters are fitted
+  // The starts that lead a refit out of the base fit's basin (the base refitted around the
+  // screening's effect, the staged fits of base + effect) run only while the base misfits the fit
+  // recordings (LoopOptions::basin_starts_above_noise): a base at the noise has no better minimum
+  // of the fit part to be led to, and those starts were 60 % of the loop's CPU on such data.
+  bool basin_starts = true;
   int effect_iterations = 60;       // Levenberg-Marquardt iterations of each start's effect-only stage
   int joint_iterations = 300;       // ... of the joint refit from the best start
   thermal::BudgetContinuation joint_continuation;  // ... and past it while it still gains (LoopOptions::refit_continuation)

@@ -375,6 +375,11 @@ class ResidualLoop {
     ctx.before_check = L_.before_check;
     ctx.base_bic = base_bic_;
     ctx.fit_base = o_.fit_base;
+    ctx.basin_starts = base_misfits_fit_part();
+    if (o_.fit_base && !ctx.basin_starts)
+      say(fmt::format("residual: the base fits the fit recordings at their noise (rms {:.3f}x the noise sigma): each refit starts from the "
+                      "base fit only, with no start to lead it out of the base's basin",
+                      L_.before_fit.rmse_k / L_.noise_sigma_k));
     ctx.free_params = free_params_;
     ctx.effect_iterations = o_.max_iterations;
     ctx.joint_iterations = o_.refine_iterations;
@@ -895,6 +900,13 @@ class ResidualLoop {
     ctx_.base_params = bp_;
     ctx_.base_bic = base_bic_;
     ctx_.before_check = L_.before_check;
+    ctx_.basin_starts = base_misfits_fit_part();
+  }
+
+  // LoopOptions::basin_starts_above_noise
+  bool base_misfits_fit_part() const {
+    const double f = o_.basin_starts_above_noise;
+    return !(f > 0) || !(L_.before_fit.rmse_k <= f * L_.noise_sigma_k);
   }
 
   // A later stage added candidates: the decision is taken again, and a new choice is polished.

@@ -87,6 +87,14 @@ struct LoopOptions {
   // the wrong nodes, and every refit start holds the base fit's values. The base fit's own restart
   // threshold (FitOptions::restart_above_noise_factor, 10).
   double boundary_from_data_above_noise = thermal::FitOptions{}.restart_above_noise_factor;
+  // A joint refit starts also from points that lead it out of the base fit's basin (the base
+  // refitted around the screening's effect, the staged fits of base + effect: refit_candidate)
+  // only when the base fits the fit recordings above this multiple of their noise sigma (a ratio;
+  // 0 = always). WHY: at the noise the fit part holds no better minimum to be led to, so those
+  // starts end where the base-fit start does; on the reference recordings (base rms 1.000x the
+  // noise) they were 60 % of the loop's CPU. Effect recordings misfit far above it (the stored
+  // suite answers: 2.4x on clean plant data with its datasheet noise, 12x and up with an effect).
+  double basin_starts_above_noise = 1.05;
   // A claim (or partial explanation) whose refit fits the fit recordings more than this many times
   // worse (rms ratio; 0 = never) than another fitted candidate is refitted once more from that
   // candidate's base values, starting from its own fitted effect. WHY: the base fit absorbs part of

@@ -268,6 +268,49 @@ TEST(ResidualLoopDecision, CleanDataGiveNone) {
   for (const auto& c : r.candidates) EXPECT_NE(c.status, "effect") << c.label;
 }
 
+// A base that fits the fit recordings at their noise leaves no better minimum of the fit part for a
+// refit to be led to: the starts that lead out of the base's basin (the base refitted around the
+// screening's effect, the staged fits of base + effect) are skipped, and every candidate is judged
+// the same as with them (LoopOptions::basin_starts_above_noise). With an effect the base misfits
+// far above the gate and every start runs.
+TEST(ResidualLoopDecision, ABaseAtTheNoiseSkipsTheStartsThatLeaveItsBasinAndJudgesAlike) {
+  const auto run = [](const test::Truth& t, double gate, std::string& log, int max_candidates = LoopOptions{}.max_candidates) {
+    LoopOptions o = quiet_options();
+    o.basin_starts_above_noise = gate;
+    o.max_candidates = max_candidates;
+    o.progress = [&log](const std::string& s) { log += s + "\n"; };
+    const test::Recordings rec = test::make_recordings(t);
+    return run_residual_loop(th::preset_network("spindle4"), Eigen::VectorXd(), rec.fit, rec.check, o);
+  };
+  const auto basin_starts = [](const std::string& log) {
+    return log.find("base refitted around the screening's effect") != std::string::npos || log.find("staged fit of base") != std::string::npos;
+  };
+  test::Truth clean;
+  clean.no_effect = true;
+  std::string gated, always;
+  const LoopResult g = run(clean, LoopOptions{}.basin_starts_above_noise, gated);
+  const LoopResult a = run(clean, 0.0, always);
+  ASSERT_LE(g.before_fit.rmse_k, 1.05 * g.noise_sigma_k) << "the clean case no longer fits at its noise";
+  EXPECT_NE(gated.find("at their noise"), std::string::npos) << gated;
+  EXPECT_FALSE(basin_starts(gated)) << gated;
+  EXPECT_TRUE(basin_starts(always)) << "with the gate off those starts run: " << always;
+  EXPECT_EQ(g.verdict, a.verdict);
+  EXPECT_EQ(g.label, a.label);
+  ASSERT_EQ(g.candidates.size(), a.candidates.size());
+  for (std::size_t i = 0; i < g.candidates.size(); ++i) {
+    EXPECT_EQ(g.candidates[i].label, a.candidates[i].label);
+    EXPECT_EQ(g.candidates[i].status, a.candidates[i].status) << g.candidates[i].label;
+  }
+
+  test::Truth lag;  // the family case sensor_lag_T2; its refits are not the point here
+  lag.spec = spec(EffectKind::SensorLag, {}, "T2");
+  lag.values["tau_probe_T2"] = 300;
+  std::string with_effect;
+  const LoopResult e = run(lag, LoopOptions{}.basin_starts_above_noise, with_effect, 0);
+  EXPECT_GT(e.before_fit.rmse_k, 1.05 * e.noise_sigma_k);
+  EXPECT_EQ(with_effect.find("at their noise"), std::string::npos) << with_effect;
+}
+
 // Clean plant recorded by a module (metadata module_id), every reading through a filter that lags
 // it by 20 s (below the 30 s sample period, as the module's own filter): the base model's check
 // error is above twice the white noise (what the noise test alone calls something to explain) but
