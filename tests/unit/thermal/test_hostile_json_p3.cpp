@@ -4,7 +4,10 @@
 // stable" of a stable network.
 #include "host/io/input_error.hpp"
 #include "host/io/json_input.hpp"
+#include "host/thermal/model_file.hpp"
 #include "host/thermal/network.hpp"
+#include "host/thermal/validate.hpp"
+#include "test_support.hpp"
 
 #include <gtest/gtest.h>
 
@@ -127,6 +130,138 @@ TEST(HostileNetworkJson, ANumberBeyondDoubleRangeIsPlacedByLineColumnAndKey) {
   } catch (const io::InputError& e) {
     EXPECT_TRUE(has(e.what(), "at line 1, column 5 ([]): number '-2e999'")) << e.what();
   }
+}
+
+// --- model JSON ---------------------------------------------------------------------------------
+
+json spindle4_model() {
+  const Network net = preset_network("spindle4");
+  const Eigen::VectorXd p = default_parameters(net);
+  json j;
+  j["format"] = kFittedModelFormat;
+  j["network"] = network_to_json(net);
+  for (int i = 0; i < net.param_count(); ++i) j["parameters"][net.params[static_cast<std::size_t>(i)].name] = p[i];
+  return j;
+}
+
+std::string model_error(const json& j) {
+  try {
+    model_from_json(j, "model.json");
+  } catch (const std::invalid_argument& e) {
+    return e.what();
+  }
+  return "";
+}
+
+// What `fit` writes (model_to_json, every key it emits) and the models shipped in tests/data read.
+TEST(HostileModelJson, ModelsTheToolWritesStillRead) {
+  const Network net = preset_network("spindle4");
+  FitResult fit;
+  fit.params = default_parameters(net);
+  for (int i = 0; i < net.param_count(); ++i) {
+    const Parameter& p = net.params[static_cast<std::size_t>(i)];
+    fit.estimates.push_back({p.name, p.unit, fit.params[i], 0.0, Identifiability::Good, false, "note"});
+  }
+  fit.stages.push_back({});
+  fit.warnings = {"a warning"};
+  const std::vector<Recording> recs{read_recording_csv(test::ref_dir() + "/" + test::warmup_files()[0])};
+  const json written = model_to_json(net, fit, recs);
+  for (const char* key : {"format", "network", "parameters", "sigma", "sigma_note", "units", "identifiability", "notes", "gauge",
+                          "fit", "recordings", "warnings", "channel_map"})
+    EXPECT_TRUE(written.contains(key)) << key;
+  EXPECT_EQ(model_error(written), "");
+  for (const char* file : {"/incubator-dt/result/lid2021_events/model_lid.json", "/incubator-dt/result/lid2021_events/model_base.json"})
+    EXPECT_NO_THROW(load_model(std::string(BTSM_TEST_DATA_DIR) + file)) << file;
+}
+
+// "paramters" was ignored without a word.
+TEST(HostileModelJson, AnUnknownTopLevelKeyIsRefusedWithTheNearestKnownOne) {
+  json typo = spindle4_model();
+  typo["paramters"] = json::object();
+  const std::string t = model_error(typo);
+  EXPECT_TRUE(has(t, "model.json: unknown top-level key \"paramters\" (did you mean 'parameters'?)")) << t;
+
+  json other = spindle4_model();
+  other["zzz_custom"] = 1;
+  const std::string o = model_error(other);
+  EXPECT_TRUE(has(o, "unknown top-level key \"zzz_custom\"")) << o;
+  EXPECT_FALSE(has(o, "did you mean")) << o;
+
+  // the typo of a required key is named, not just "needs 'parameters'"
+  json missing = spindle4_model();
+  missing["paramters"] = missing["parameters"];
+  missing.erase("parameters");
+  EXPECT_TRUE(has(model_error(missing), "did you mean 'parameters'?")) << model_error(missing);
+  // informative blocks stay open: what is inside "notes" or "fit" is not checked
+  json open = spindle4_model();
+  open["notes"] = {{"anything", "free text"}};
+  open["fit"] = {{"extra", 1}};
+  EXPECT_EQ(model_error(open), "");
+}
+
+// A capacitance of 1e300 J/K (or 1e-300) was "not stable ... heat that grows with temperature
+// faster than it flows away" of a stable network: its time constants are beyond resolution.
+TEST(HostileModelJson, AbsurdCapacitancesAreNamedAsTimeConstantsNotAsInstability) {
+  for (const double c : {1e300, 1e-300}) {
+    json m = spindle4_model();
+    for (auto& p : m["network"]["parameters"])
+      if (p["name"] == "C1") p["min"] = 1e-300, p["max"] = 1e300;
+    m["parameters"]["C1"] = c;
+    const std::string e = model_error(m);
+    EXPECT_TRUE(has(e, "time constants too far apart to simulate at 0 rpm: ")) << e;
+    EXPECT_TRUE(has(e, "node 'rear_bearing'") && has(e, "C1 = ")) << e;
+    EXPECT_FALSE(has(e, "not stable")) << e;
+  }
+}
+
+// A 5 MW heat source made validate say the prediction diverges because "the network is not
+// stable"; it is stable, its steady rise is 1.6e6 K.
+TEST(HostileModelJson, AnAbsurdHeatSourceIsNamedAsSuchNotAsInstability) {
+  json m = spindle4_model();
+  for (auto& p : m["network"]["parameters"])
+    if (p["name"] == "qf1") p["max"] = 1e7;
+  m["parameters"]["qf1"] = 5e6;
+  const std::string e = model_error(m);
+  EXPECT_TRUE(has(e, "at 5000 rpm its heat would settle node 'rear_bearing' ")) << e;
+  EXPECT_TRUE(has(e, "K above ambient, more than the 10000 K a recording can hold (the network is stable there")) << e;
+  EXPECT_TRUE(has(e, "its largest heat source is 'Qf1' = 5e+06 W")) << e;
+  EXPECT_FALSE(has(e, "not stable")) << e;
+}
+
+// Heat that grows with the node's own rise faster than its links carry it away: still "not
+// stable", at a read and where validate's prediction leaves the range at a faster speed.
+TEST(HostileModelJson, AGenuinelyUnstableNetworkIsStillReportedAsNotStable) {
+  json net = incubator();
+  net["parameters"].push_back({{"name", "k"}, {"unit", "W/K"}, {"nominal", 5.0}, {"min", -100}, {"max", 100}, {"log", false}});
+  net["sources"].push_back({{"name", "runaway"}, {"node", "heater"},
+                            {"operating", {{{"power", "k"}, {"speed_exponent", 1}, {"driven_by", {"heater", "ambient"}}}}}});
+  json m = {{"network", net}, {"parameters", {{"C_heater", 300}, {"C_air", 200}, {"R_heater_air", 1}, {"R_box", 2}, {"q_heater", 1}, {"k", 5}}}};
+  const std::string at_read = model_error(m);
+  EXPECT_TRUE(has(at_read, "not stable in operating mode at 1 rpm")) << at_read;
+
+  // stable at the reference speed (k = 0.1 W/K against 1/3 W/K to ambient), not at 10x it
+  m["parameters"]["k"] = 0.1;
+  const FittedModel fm = model_from_json(m, "model.json");
+  Recording rec;
+  rec.source = "rec.csv";
+  rec.time_s = {0, 1000};
+  rec.speed_rpm = {10, 10};
+  rec.ambient_c = {20, 20};
+  Eigen::MatrixXd predicted(2, 2);
+  predicted << 20, 20, 1e5, 50;
+  const std::string diverges = prediction_problem(fm.network, fm.params, predicted, rec);
+  EXPECT_TRUE(has(diverges, "the model's prediction diverges: node 'heater' at t = 1000 s (10 rpm) is 1e+05 degC: not stable in "
+                            "operating mode at 10 rpm"))
+      << diverges;
+
+  // stable at every speed but absurdly hot at this one: said so
+  m["parameters"]["k"] = 0.0;
+  m["parameters"]["q_heater"] = 10.0;
+  const FittedModel hot = model_from_json(m, "model.json");
+  rec.speed_rpm = {5000, 5000};
+  const std::string too_hot = prediction_problem(hot.network, hot.params, predicted, rec);
+  EXPECT_TRUE(has(too_hot, "at 5000 rpm its heat would settle node 'heater' ") && has(too_hot, "the network is stable there")) << too_hot;
+  EXPECT_FALSE(has(too_hot, "not stable")) << too_hot;
 }
 
 }  // namespace
