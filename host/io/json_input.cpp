@@ -6,6 +6,9 @@
 #include "host/io/input_file.hpp"
 #include "host/io/utf8_text.hpp"
 
+#include <cmath>
+#include <cstdlib>
+#include <cstring>
 #include <functional>
 #include <set>
 #include <vector>
@@ -62,6 +65,14 @@ class DuplicateKeyWatch {
     return true;
   }
   const std::string& first_duplicate() const { return first_; }
+  // The path of the value being parsed ("parameters[].max"; "" at the top level): the parser
+  // reports the key before it reads the value, so after a failure this is where it failed.
+  std::string current_path() const {
+    std::string path;
+    for (const Frame& f : frames_)
+      path += f.object ? (f.last_key.empty() ? "" : (path.empty() ? "" : ".") + f.last_key) : "[]";
+    return path;
+  }
 
  private:
   struct Frame {
@@ -79,6 +90,36 @@ class DuplicateKeyWatch {
   std::string first_;
 };
 
+// "line 30, column 11" of the first number in `text` (outside strings) beyond double range, as
+// the parser's own messages place an error; "" when none is found. The parser's out_of_range
+// error for 1e400 names the number only ("number overflow parsing '1e400'"), not where it is.
+std::string overflowing_number_place(std::string_view text, std::string* number) {
+  bool in_string = false, escaped = false;
+  std::size_t line = 1, line_start = 0;
+  for (std::size_t i = 0; i < text.size(); ++i) {
+    const char c = text[i];
+    if (c == '\n') { ++line; line_start = i + 1; }
+    if (in_string) {
+      if (escaped) escaped = false;
+      else if (c == '\\') escaped = true;
+      else if (c == '"') in_string = false;
+      continue;
+    }
+    if (c == '"') { in_string = true; continue; }
+    if (c != '-' && (c < '0' || c > '9')) continue;
+    std::size_t end = i;
+    while (end < text.size() && std::strchr("0123456789+-.eE", text[end]) != nullptr) ++end;
+    const std::string token(text.substr(i, end - i));
+    const double v = std::strtod(token.c_str(), nullptr);
+    if (std::isinf(v)) {
+      *number = token;
+      return "line " + std::to_string(line) + ", column " + std::to_string(i - line_start + 1);
+    }
+    i = end - 1;
+  }
+  return "";
+}
+
 }  // namespace
 
 nlohmann::json parse_json_text(std::string_view text, const std::string& source, int max_depth) {
@@ -91,8 +132,17 @@ nlohmann::json parse_json_text(std::string_view text, const std::string& source,
   nlohmann::json value;
   try {
     value = nlohmann::json::parse(text.begin(), text.end(), std::ref(watch));
+  } catch (const nlohmann::json::out_of_range& e) {
+    // a number beyond double range (1e400): placed as a parse error is, with the key it is the value of
+    std::string number;
+    const std::string place = overflowing_number_place(text, &number);
+    if (place.empty()) throw InputError(source + ": not valid JSON: " + without_json_exception_ids(e.what()));
+    const std::string path = watch.current_path();
+    throw InputError(source + ": not valid JSON: at " + place + (path.empty() ? "" : " (" + printable(path) + ")") + ": number '" +
+                     printable(number.size() > 40 ? number.substr(0, 40) + "..." : number) +
+                     "' is beyond the range of a number (+-1.8e308)");
   } catch (const nlohmann::json::exception& e) {
-    // parse_error, and out_of_range for a number beyond double range (1e400)
+    // parse_error: its message places the error at a line and column already
     throw InputError(source + ": not valid JSON: " + without_json_exception_ids(e.what()));
   }
   if (!watch.first_duplicate().empty())

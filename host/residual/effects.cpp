@@ -56,6 +56,12 @@ int add_node(AugmentedModel& m, const std::string& name, int capacitance_param) 
   return m.net.node_count() - 1;
 }
 
+void add_source(AugmentedModel& m, const th::Source& s) {
+  for (const auto& existing : m.net.sources)
+    if (existing.name == s.name) throw std::invalid_argument("effect source '" + s.name + "' already exists in the network");
+  m.net.sources.push_back(s);
+}
+
 th::Term term(int p, th::TermKind kind, double exponent = 0.0) {
   th::Term t;
   t.param = p;
@@ -66,6 +72,10 @@ th::Term term(int p, th::TermKind kind, double exponent = 0.0) {
 
 void add_link(AugmentedModel& m, const std::string& name, int a, int b, const std::vector<th::Term>& operating,
               const std::vector<th::Term>& cooling) {
+  // As add_node(): the network reader refuses two links of one name, and a model the loop writes
+  // (the demo's final_model.json) must read back.
+  for (const auto& existing : m.net.links)
+    if (existing.name == name) throw std::invalid_argument("effect link '" + name + "' already exists in the network");
   th::Link l;
   l.name = name;
   l.a = a;
@@ -260,7 +270,7 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
         t.hot = n;
         t.cold = th::kAmbient;
         s.operating.push_back(t);
-        m.net.sources.push_back(s);
+        add_source(m, s);
         m.key_params.push_back("k_heat_T_" + nn);
       }
       break;
@@ -282,7 +292,7 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
         t.hot = e.hot;
         t.cold = e.cold;
         s.operating.push_back(t);
-        m.net.sources.push_back(s);
+        add_source(m, s);
         m.key_params.push_back("k_couple_" + nn);
       }
       break;
@@ -298,7 +308,7 @@ AugmentedModel augment(const th::Network& base, const Eigen::VectorXd& base_para
         s.name = "extra_" + nn;
         s.node = n;
         s.operating.push_back(term(p, th::TermKind::Power, e.speed_exponent));
-        m.net.sources.push_back(s);
+        add_source(m, s);
         m.key_params.push_back("q_extra_" + nn);
       }
       break;

@@ -193,7 +193,7 @@ class ResidualLoop {
     // A base that diverges on a recording (a given model unstable at its speeds) would leave NaN
     // rows that drop out of every error: "base rms 0 K" and a verdict on nothing.
     const auto require_finite = [&](const Evaluation& ev, const th::Recording& rec) {
-      if (const std::string problem = th::prediction_problem(base_, ev.nodes_c, rec); !problem.empty())
+      if (const std::string problem = th::prediction_problem(base_, bp_, ev.nodes_c, rec); !problem.empty())
         throw std::invalid_argument(rec.source + ": the base model: " + problem);
     };
     for (std::size_t r = 0; r < fit_.size(); ++r) {

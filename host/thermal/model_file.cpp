@@ -4,6 +4,7 @@
 #include "host/io/output_file.hpp"
 
 #include "host/io/json_input.hpp"
+#include "host/io/utf8_text.hpp"
 
 #include <Eigen/Eigenvalues>
 
@@ -13,6 +14,7 @@
 #include <fstream>
 #include <limits>
 #include <stdexcept>
+#include <vector>
 
 namespace btsm::thermal {
 namespace {
@@ -33,19 +35,98 @@ std::string value_text(double v) {
 // beyond it: that is the bound, not a value outside it.
 double bound_slack(double bound) { return 1e-9 * std::abs(bound); }
 
-// The poles of A = -C^-1 G all in the left half plane: with a symmetric G (a passive network)
-// exactly when every node has a path of positive conductances to ambient or a boundary; a source
-// driven by a temperature difference makes G non-symmetric and may also push a pole across, hence
-// the general eigenvalues. Checked with every declared event present (a link an event switches on
-// counts), so a network is refused only when no event state can make it stable.
-bool stable(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
+// The eigenvalues of C^-1 G resolve time constants about 1e12 apart at most (double precision:
+// the slow ones are lost in the rounding of the fast ones), so stability is decided within that.
+constexpr double kResolvableTimeConstantRatio = 1e12;
+constexpr const char* kSpreadHead = "time constants too far apart to simulate at ";
+
+// Node i's own time constant C_i / (sum of its conductances), +inf when nothing conducts from it.
+double node_time_constant_s(const NodeMatrices& m, int i) {
+  return m.G(i, i) > 0 ? m.capacitance[i] / m.G(i, i) : std::numeric_limits<double>::infinity();
+}
+
+// "" when the node time constants lie within kResolvableTimeConstantRatio of each other, else
+// the two extremes named. A capacitance of 1e300 J/K (or 1e-300) made the poles unresolvable
+// and was called "not stable ... heat growing faster than it flows away" of a network that is
+// stable, only absurd.
+std::string time_constant_spread(const Network& net, const Eigen::VectorXd& params, const NodeMatrices& m, double speed_rpm) {
+  int fast = 0, slow = 0;
+  for (int i = 0; i < net.node_count(); ++i) {
+    if (!(m.G(i, i) > 0)) return "";  // nothing conducts from it: not a spread, a cut-off node
+    if (node_time_constant_s(m, i) < node_time_constant_s(m, fast)) fast = i;
+    if (node_time_constant_s(m, i) > node_time_constant_s(m, slow)) slow = i;
+  }
+  const double t_fast = node_time_constant_s(m, fast), t_slow = node_time_constant_s(m, slow);
+  if (std::isfinite(t_slow) && t_fast > 0 && t_slow <= kResolvableTimeConstantRatio * t_fast) return "";
+  const auto node = [&](int i) {
+    const Node& n = net.nodes[static_cast<std::size_t>(i)];
+    const Parameter& c = net.params[static_cast<std::size_t>(n.capacitance_param)];
+    return "node '" + n.name + "' " + value_text(node_time_constant_s(m, i)) + " s (" + c.name + " = " +
+           value_text(params[n.capacitance_param]) + " J/K over " + value_text(m.G(i, i)) + " W/K of links)";
+  };
+  return kSpreadHead + value_text(speed_rpm) + " rpm: " + node(slow) + ", " + node(fast) +
+         ", more than 1e12 apart (a capacitance or a conductance far outside its physical range)";
+}
+
+// "" when the poles of A = -C^-1 G lie in the left half plane at `speed_rpm`, else why not. With a
+// symmetric G (a passive network) they do exactly when every node has a path of positive
+// conductances to ambient or a boundary; a source driven by a temperature difference makes G
+// non-symmetric and may also push a pole across, hence the general eigenvalues. Checked with every
+// declared event present (a link an event switches on counts), so a network is refused only when
+// no event state can make it stable.
+std::string instability(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
   const NodeMatrices m = assemble(net, params, speed_rpm, ~0u);
+  const std::string unstable = std::string("not stable in ") + mode_name(net.mode_at(speed_rpm)) + " mode at " +
+                               value_text(speed_rpm) +
+                               " rpm (a node without a path of positive conductances to ambient, or heat that grows with "
+                               "temperature faster than it flows away)";
   const Eigen::MatrixXd CiG = m.capacitance.cwiseInverse().asDiagonal() * m.G;
-  if (!CiG.allFinite()) return false;
+  if (!CiG.allFinite()) {
+    const std::string spread = time_constant_spread(net, params, m, speed_rpm);
+    return spread.empty() ? unstable : spread;
+  }
   const Eigen::EigenSolver<Eigen::MatrixXd> es(CiG, false);
-  if (es.info() != Eigen::Success) return false;
+  if (es.info() != Eigen::Success) return unstable;
   const Eigen::VectorXcd ev = es.eigenvalues();
-  return ev.real().minCoeff() > 1e-12 * std::max(ev.cwiseAbs().maxCoeff(), 1e-300);
+  const double resolution = std::max(ev.cwiseAbs().maxCoeff(), 1e-300) / kResolvableTimeConstantRatio;
+  const double slowest = ev.real().minCoeff();
+  if (slowest > resolution) return "";
+  // A pole clearly in the right half plane is instability whatever the spread; one within the
+  // rounding of the fastest pole is either a cut-off node or time constants too far apart.
+  if (slowest >= -resolution)
+    if (std::string spread = time_constant_spread(net, params, m, speed_rpm); !spread.empty()) return spread;
+  return unstable;
+}
+
+// Edits between a and b (insert, delete, replace, swap of neighbours): "paramters" is 1 from
+// "parameters".
+std::size_t edit_distance(const std::string& a, const std::string& b) {
+  std::vector<std::vector<std::size_t>> d(a.size() + 1, std::vector<std::size_t>(b.size() + 1));
+  for (std::size_t i = 0; i <= a.size(); ++i) d[i][0] = i;
+  for (std::size_t k = 0; k <= b.size(); ++k) d[0][k] = k;
+  for (std::size_t i = 1; i <= a.size(); ++i)
+    for (std::size_t k = 1; k <= b.size(); ++k) {
+      d[i][k] = std::min({d[i - 1][k] + 1, d[i][k - 1] + 1, d[i - 1][k - 1] + (a[i - 1] == b[k - 1] ? 0 : 1)});
+      if (i > 1 && k > 1 && a[i - 1] == b[k - 2] && a[i - 2] == b[k - 1]) d[i][k] = std::min(d[i][k], d[i - 2][k - 2] + 1);
+    }
+  return d[a.size()][b.size()];
+}
+
+// A top-level key a fitted model does not have: a misspelt "paramters" was ignored, so the values
+// meant were not the ones read (or a required key was reported missing without a word on the typo).
+void refuse_unknown_top_level_keys(const nlohmann::json& j, const std::string& src) {
+  std::string known;
+  for (const char* k : kFittedModelKeys) known += (known.empty() ? "" : ", ") + std::string(k);
+  for (const auto& [key, value] : j.items()) {
+    if (std::find(std::begin(kFittedModelKeys), std::end(kFittedModelKeys), key) != std::end(kFittedModelKeys)) continue;
+    std::string nearest;
+    std::size_t best = std::numeric_limits<std::size_t>::max();
+    for (const char* k : kFittedModelKeys)
+      if (const std::size_t d = edit_distance(key.size() > 64 ? key.substr(0, 64) : key, k); d < best) best = d, nearest = k;
+    const bool close = best <= std::max<std::size_t>(1, nearest.size() / 4);
+    throw std::invalid_argument(src + ": unknown top-level key " + io::printable(io::json_excerpt(key)) +
+                                (close ? " (did you mean '" + nearest + "'?)" : "") + "; a fitted model has: " + known);
+  }
 }
 
 }  // namespace
@@ -71,11 +152,39 @@ std::string model_problems(const Network& net, const Eigen::VectorXd& params) {
     if (!(params[n.capacitance_param] > 0)) add("node '" + n.name + "' has a capacitance <= 0");
   if (!out.empty()) return out;
   const double operating = net.mode_at(net.speed_ref_rpm) == Mode::Operating ? net.speed_ref_rpm : 2 * net.operating_above_rpm;
+  bool spread_told = false;  // time constants too far apart: once, not again for the other mode
+  for (const double s : {0.0, operating}) {
+    const std::string why = instability(net, params, s);
+    if (why.empty() || (spread_told && why.rfind(kSpreadHead, 0) == 0)) continue;
+    spread_told = spread_told || why.rfind(kSpreadHead, 0) == 0;
+    add(why);
+  }
+  if (!out.empty()) return out;
   for (const double s : {0.0, operating})
-    if (!stable(net, params, s))
-      add(std::string("not stable in ") + mode_name(net.mode_at(s)) +
-          " mode (a node without a path of positive conductances to ambient, or heat that grows with temperature faster than it flows away)");
+    if (const std::string why = steady_rise_problem(net, params, s); !why.empty()) return why;
   return out;
+}
+
+std::string instability_at(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
+  return instability(net, params, speed_rpm);
+}
+
+std::string steady_rise_problem(const Network& net, const Eigen::VectorXd& params, double speed_rpm) {
+  const NodeMatrices m = assemble(net, params, speed_rpm, ~0u);
+  const Eigen::VectorXd rise = m.G.fullPivLu().solve(m.heat_w);
+  Eigen::Index node = 0;
+  const double largest = rise.cwiseAbs().maxCoeff(&node);
+  if (std::isfinite(largest) && largest <= kMaxSteadyRiseK) return "";
+  Eigen::Index source = 0;
+  const double heat = net.sources.empty() ? 0.0 : m.source_w.cwiseAbs().maxCoeff(&source);
+  std::string out = "at " + value_text(speed_rpm) + " rpm its heat would settle node '" + net.nodes[static_cast<std::size_t>(node)].name +
+                    "' " + value_text(std::abs(rise[node])) + " K " + (rise[node] < 0 ? "below" : "above") + " ambient, more than the " +
+                    value_text(kMaxSteadyRiseK) +
+                    " K a recording can hold (the network is stable there: a heat source or a resistance is far outside its physical "
+                    "range, or the speed far beyond the ones the model was made for";
+  if (heat > 0)  // as reduce names it (reduce.cpp, check_steady_rise)
+    out += "; its largest heat source is '" + net.sources[static_cast<std::size_t>(source)].name + "' = " + value_text(m.source_w[source]) + " W";
+  return out + ")";
 }
 
 std::vector<FittedChannel> fitted_channels(const nlohmann::json& channel_map) {
@@ -103,8 +212,11 @@ FittedModel model_from_json(const nlohmann::json& j, const std::string& src) {
     if (format != kFittedModelFormat)
       throw std::invalid_argument(src + ": format '" + format + "' is not a fitted model ('" + kFittedModelFormat + "')");
   }
-  if (!j.is_object() || !j.contains("network") || !j.contains("parameters"))
+  if (!j.is_object() || !j.contains("network"))
     throw std::invalid_argument(src + ": not a btsm model (needs 'network' and 'parameters')");
+  // (after 'network': a network JSON given as a model is named by the line above, not by its keys)
+  refuse_unknown_top_level_keys(j, src);
+  if (!j.contains("parameters")) throw std::invalid_argument(src + ": not a btsm model (needs 'network' and 'parameters')");
   FittedModel m;
   m.json = j;
   m.network = network_from_json(j.at("network"), src + " (network)");

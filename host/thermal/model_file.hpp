@@ -33,7 +33,28 @@ nlohmann::json model_to_json(const Network& net, const FitResult& fit, const std
 // finite or outside its parameter's [min, max], a capacitance <= 0, or a network that is not
 // stable at 0 rpm or in the operating mode (a pole of -C^-1 G with a real part >= 0: a node
 // without a path of positive conductances to ambient, or driven heat that outgrows its outflow).
+// Also refused there: node time constants more than 1e12 apart (the stability test cannot resolve
+// them; named as such, not as "not stable"), and heat that would hold a node more than
+// kMaxSteadyRiseK from ambient when settled at rest or at the reference speed (a stable network
+// with a heat source or a resistance far out of range).
 std::string model_problems(const Network& net, const Eigen::VectorXd& params);
+
+// A settled node further than this from ambient is beyond any temperature a recording may hold
+// (kMaxRecordedTempC = 10000 degC): a model predicting it has a value far out of range.
+inline constexpr double kMaxSteadyRiseK = 10000.0;
+// The parts of model_problems() at one speed, "" when none: why the network is not stable there
+// (or its time constants cannot be resolved), and a steady rise beyond kMaxSteadyRiseK.
+std::string instability_at(const Network& net, const Eigen::VectorXd& params, double speed_rpm);
+std::string steady_rise_problem(const Network& net, const Eigen::VectorXd& params, double speed_rpm);
+
+// The top-level keys of a fitted-model JSON (what model_to_json, the demo's final model and the
+// files in tests/data carry); any other is refused by name, a typo such as "paramters" with the
+// known key it is nearest to. What lies inside "fit", "notes", "units", "recordings" ... is
+// informative and not checked: readers act only on "network", "parameters", "sigma" and
+// "channel_map".
+inline constexpr const char* kFittedModelKeys[] = {"format", "network", "parameters", "sigma", "sigma_note",
+                                                   "units", "identifiability", "notes", "gauge", "fit",
+                                                   "recordings", "warnings", "channel_map"};
 
 // The module channel -> recorded column -> node map of a fit ("channel_map" in the model JSON):
 // channel n is recorded as column "Tn" (btsm record); its module role comes from the recordings'

@@ -5,13 +5,16 @@
 
 #include "host/io/input_error.hpp"
 #include "host/io/json_input.hpp"
+#include "host/io/utf8_text.hpp"
 
 #include <algorithm>
 #include <cmath>
 #include <fstream>
 #include <sstream>
 #include <stdexcept>
+#include <string_view>
 #include <tuple>
+#include <utility>
 
 namespace btsm::thermal {
 namespace {
@@ -53,6 +56,39 @@ void check_keys(const json& j, std::initializer_list<const char*> allowed, const
 // An array of at most `max` entries (the reader's size limits, see kMaxNetworkNodes ...).
 void check_count(const json& arr, std::size_t max, const std::string& src, const std::string& where) {
   if (arr.size() > max) bad(src, where, std::to_string(arr.size()) + " entries, at most " + std::to_string(max) + " are supported");
+}
+
+// "two nodes are named 'heater' (nodes[0] and nodes[2]) ...": both entries by their index in the
+// JSON array, which is also their index in the Network's vectors (they keep the file's order).
+std::string two_entries_named(const char* array, std::size_t first, std::size_t second, const std::string& what,
+                              const std::string& name) {
+  return "two " + what + "s are named '" + io::printable(name) + "' (" + array + "[" + std::to_string(first) + "] and " + array +
+         "[" + std::to_string(second) + "]): a " + what + " name must be unique, rename one of them";
+}
+
+// The first pair of entries of `items` with the same name(item), as two_entries_named() says it;
+// "" when every name is unique.
+template <typename T, typename Name>
+std::string duplicate_name_problem(const std::vector<T>& items, Name name, const char* array, const std::string& what) {
+  for (std::size_t i = 0; i < items.size(); ++i)
+    for (std::size_t k = 0; k < i; ++k)
+      if (name(items[k]) == name(items[i])) return two_entries_named(array, k, i, what, name(items[i]));
+  return "";
+}
+
+// Why `name` cannot name a node, "" when it can: 'ambient' and the declared boundary columns are
+// link ends of their own (a link "between" [n, "ambient"] means the room), so a node of that name
+// could never be reached by a link.
+std::string reserved_node_name_problem(const Network& net, const std::string& name) {
+  if (name == "ambient")
+    return "'ambient' is reserved: a link to \"ambient\" means the recorded room temperature (ambient_c), not a node; "
+           "name the node otherwise";
+  for (const auto& b : net.boundaries)
+    if (b == name)
+      return "'" + io::printable(name) + "' is a declared boundary column: a link to it means the recorded column; name the node otherwise";
+  for (const auto& e : net.events)
+    if (e == name) return "'" + io::printable(name) + "' is a declared event column; name the node otherwise";
+  return "";
 }
 
 std::vector<Term> parse_terms(const Network& net, const json& arr, bool link, const std::string& src, const std::string& where) {
@@ -203,6 +239,53 @@ void check_paths_to_ambient(const Network& net) {
                 "'both' or 'cooling' term without speed_exponent) and while running, or its temperature never settles");
 }
 
+// What a parameter stands for where it is used, by its physical unit: a node's capacitance is
+// J/K, a link's resistance K/W, a conductance W/K, a source's heat W, a heat driven by a
+// temperature difference W/K, a probe's drift K/h. One parameter used for two of different units
+// (a capacitance naming the resistance 'R_box') is a slip of the pen in the file; it used to
+// surface only in the fit as "parameter 'R_box' enters non-linearly".
+struct ParameterUse {
+  const char* role;  // "the capacitance of", "a resistance in", ...
+  const char* unit;
+  std::string owner;  // "node 'air'", "link 'R_box'", ...
+};
+
+std::vector<std::vector<ParameterUse>> parameter_uses(const Network& net) {
+  std::vector<std::vector<ParameterUse>> uses(net.params.size());
+  const auto use = [&](int p, ParameterUse u) {
+    if (p >= 0 && p < net.param_count()) uses[static_cast<std::size_t>(p)].push_back(std::move(u));
+  };
+  for (const auto& n : net.nodes) use(n.capacitance_param, {"the capacitance of", "J/K", "node '" + n.name + "'"});
+  const auto terms = [&](const std::vector<Term>& ts, const std::string& owner) {
+    for (const Term& t : ts) {
+      if (t.kind == TermKind::Resistance) use(t.param, {"a resistance in", "K/W", owner});
+      else if (t.kind == TermKind::Conductance) use(t.param, {"a conductance in", "W/K", owner});
+      else if (t.driven) use(t.param, {"a heat per kelvin (driven_by) in", "W/K", owner});
+      else use(t.param, {"a heat in", "W", owner});
+    }
+  };
+  for (const auto& l : net.links)
+    for (const auto* ts : {&l.operating, &l.cooling}) terms(*ts, "link '" + l.name + "'");
+  for (const auto& s : net.sources)
+    for (const auto* ts : {&s.operating, &s.cooling}) terms(*ts, "source '" + s.name + "'");
+  for (const auto& m : net.measurements) use(m.drift_param, {"the drift of", "K/h", "measurement '" + m.column + "'"});
+  return uses;
+}
+
+void check_parameter_roles(const Network& net, const std::string& src) {
+  const auto uses = parameter_uses(net);
+  for (std::size_t p = 0; p < uses.size(); ++p)
+    for (const ParameterUse& u : uses[p]) {
+      const ParameterUse& first = uses[p].front();
+      if (std::string_view(u.unit) == first.unit) continue;
+      const Parameter& par = net.params[p];
+      bad(src, "parameter '" + io::printable(par.name) + "'",
+          std::string("used as ") + first.role + " " + io::printable(first.owner) + " (" + first.unit + ") and as " + u.role + " " +
+              io::printable(u.owner) + " (" + u.unit + ")" + (par.unit.empty() ? "" : ", declared in " + io::printable(par.unit)) +
+              ": one value cannot stand for both; give each its own parameter (a reference to the wrong name?)");
+    }
+}
+
 }  // namespace
 
 const char* mode_name(Mode m) { return m == Mode::Operating ? "operating" : "cooling"; }
@@ -289,9 +372,20 @@ void Network::validate() const {
   };
   for (const auto& n : nodes) {
     check_param(n.capacitance_param, "node '" + n.name + "' capacitance");
-    for (const auto& m : nodes)
-      if (&m != &n && m.name == n.name) bad(src, "node '" + n.name + "'", "duplicate node name");
     if (n.name == "ambient") bad(src, "nodes", "'ambient' is reserved for the boundary");
+  }
+  {
+    // Every named entry once: messages, the fit's report and a model's parameters name them, and
+    // a second link 'R12' would read as the first one doubled. (Networks the tool extends itself,
+    // the residual loop's effects, refuse a name the network has already: effects.cpp.)
+    const auto named = [](const auto& e) -> const std::string& { return e.name; };
+    const std::pair<const char*, std::string> problems[] = {
+        {"parameters", duplicate_name_problem(params, named, "parameters", "parameter")},
+        {"nodes", duplicate_name_problem(nodes, named, "nodes", "node")},
+        {"links", duplicate_name_problem(links, named, "links", "link")},
+        {"sources", duplicate_name_problem(sources, named, "sources", "source")}};
+    for (const auto& [array, why] : problems)
+      if (!why.empty()) bad(src, array, why);
   }
   auto check_terms = [&](const std::vector<Term>& ts, const std::string& w, bool cooling) {
     for (const auto& t : ts) {
@@ -355,6 +449,7 @@ void Network::validate() const {
         bad(src, "measurement '" + measurements[i].column + "'",
             "one column cannot measure two nodes ('" + nodes[static_cast<std::size_t>(measurements[k].node)].name + "' and '" +
                 nodes[static_cast<std::size_t>(measurements[i].node)].name + "')");
+  check_parameter_roles(*this, src);
 }
 
 Network network_from_json(const json& j, const std::string& src) {
@@ -389,7 +484,8 @@ Network network_from_json(const json& j, const std::string& src) {
     Parameter p;
     p.name = get_string(pj, "name", src, w);
     const std::string wn = "parameter '" + p.name + "'";
-    if (net.param_index(p.name) >= 0) bad(src, wn, "duplicate parameter name");
+    if (const int first = net.param_index(p.name); first >= 0)
+      bad(src, "parameters", two_entries_named("parameters", static_cast<std::size_t>(first), i, "parameter", p.name));
     p.unit = pj.contains("unit") ? get_string(pj, "unit", src, wn) : "";
     p.description = pj.contains("description") ? get_string(pj, "description", src, wn) : "";
     p.nominal = get_number(pj, "nominal", std::nan(""), src, wn);
@@ -421,6 +517,11 @@ Network network_from_json(const json& j, const std::string& src) {
     check_keys(ns[i], {"name", "capacitance"}, src, w);
     Node n;
     n.name = get_string(ns[i], "name", src, w);
+    // Checked here, before the links name their ends: a second 'heater' (or a node called
+    // 'ambient') surfaced only as "link ...: unknown node 'air'", naming the node left out.
+    if (const int first = net.node_index(n.name); first >= 0)
+      bad(src, "nodes", two_entries_named("nodes", static_cast<std::size_t>(first), i, "node", n.name));
+    if (const std::string why = reserved_node_name_problem(net, n.name); !why.empty()) bad(src, w, why);
     const std::string c = get_string(ns[i], "capacitance", src, "node '" + n.name + "'");
     n.capacitance_param = net.param_index(c);
     if (n.capacitance_param < 0) bad(src, "node '" + n.name + "'", "unknown capacitance parameter '" + c + "'");

@@ -4,6 +4,7 @@
 #include "fit.hpp"
 #include "simulator.hpp"
 #include "network.hpp"
+#include "model_file.hpp"
 
 #include <Eigen/Cholesky>
 #include <Eigen/QR>
@@ -104,20 +105,32 @@ Eigen::VectorXd estimate_initial_state(const Network& net, const Eigen::VectorXd
   return guess + ldlt.solve(-Ftr / (sn * sn) + w.cwiseProduct(prior - guess));
 }
 
-std::string prediction_problem(const Network& net, const Eigen::MatrixXd& predicted_c, const Recording& rec) {
+std::string prediction_problem(const Network& net, const Eigen::VectorXd& params, const Eigen::MatrixXd& predicted_c,
+                               const Recording& rec) {
   for (Eigen::Index k = 0; k < predicted_c.rows(); ++k)
     for (Eigen::Index n = 0; n < predicted_c.cols(); ++n) {
       const double t = predicted_c(k, n);
       if (std::isfinite(t) && t >= kMinRecordedTempC && t <= kMaxRecordedTempC) continue;
       const auto r = static_cast<std::size_t>(k);
+      // row k's state comes from the interval before it, run at that row's speed
+      const double speed = r < rec.rows() ? rec.speed_rpm[r > 0 ? r - 1 : 0] : NAN;
       char value[32];
       std::snprintf(value, sizeof value, "%.4g degC", t);
       char where[96];
       std::snprintf(where, sizeof where, "t = %.6g s (%.0f rpm)", r < rec.rows() ? rec.time_s[r] : NAN,
                     r < rec.rows() ? rec.speed_rpm[r] : NAN);
+      // Why, told apart: a network unstable at this speed (its stability is checked at rest and at
+      // the reference speed only), or a stable one whose heat settles it absurdly far from ambient
+      // (a 5 MW source was called "not stable ... heat growing faster than it flows away").
+      std::string why = " (the network is not stable at the speeds this recording runs, or a heat source or resistance is far out of range)";
+      if (std::isfinite(speed) && params.size() == net.param_count()) {
+        if (const std::string unstable = instability_at(net, params, speed); !unstable.empty())
+          why = ": " + unstable;
+        else if (const std::string rise = steady_rise_problem(net, params, speed); !rise.empty())
+          why = ": " + rise;
+      }
       return "the model's prediction diverges: node '" + net.nodes[static_cast<std::size_t>(n)].name + "' at " + where + " is " +
-             (std::isfinite(t) ? std::string(value) : std::string("not finite")) +
-             " (the network is not stable at the speeds this recording runs, its heat growing faster than it flows away, or a heat source or resistance is far out of range)";
+             (std::isfinite(t) ? std::string(value) : std::string("not finite")) + why;
     }
   return "";
 }
@@ -136,7 +149,7 @@ RecordingValidation validate_recording(const Network& net, const Eigen::VectorXd
                                 std::to_string(rec.rows()) + " rows)");
   v.initial_state_c = estimate_initial_state(net, params, rec, opts.initial_rows);
   v.predicted_c = simulate_recording(net, params, rec, v.initial_state_c);
-  if (const std::string problem = prediction_problem(net, v.predicted_c, rec); !problem.empty())
+  if (const std::string problem = prediction_problem(net, params, v.predicted_c, rec); !problem.empty())
     throw std::invalid_argument(rec.source + ": " + problem);
   const auto rows = static_cast<Eigen::Index>(rec.rows());
   for (std::size_t m = 0; m < cols.size(); ++m) {

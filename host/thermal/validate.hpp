@@ -57,7 +57,10 @@ Eigen::VectorXd estimate_initial_state(const Network& net, const Eigen::VectorXd
 // where the prediction first leaves it (time, speed, node, value): a model unstable at a speed the
 // recording runs (its stability is checked at rest and at its reference speed only) diverges there,
 // and its NaN rows would otherwise drop out of every metric unnoticed.
-std::string prediction_problem(const Network& net, const Eigen::MatrixXd& predicted_c, const Recording& rec);
+// When it leaves, the cause is told from the model at that row's speed: not stable there, or stable
+// but heated further than kMaxSteadyRiseK from ambient (model_file.hpp).
+std::string prediction_problem(const Network& net, const Eigen::VectorXd& params, const Eigen::MatrixXd& predicted_c,
+                               const Recording& rec);
 ErrorMetrics error_metrics(const Eigen::VectorXd& reference, const Eigen::VectorXd& predicted);  // NaN skipped
 
 }  // namespace btsm::thermal
