@@ -57,6 +57,34 @@ std::vector<std::string> split_cells(const std::string& line) {
   return cells;
 }
 
+// Lines that end in a carriage return alone (classic Mac OS, some loggers) are one line to getline:
+// named as such, with the conversion, instead of "no header line found".
+void refuse_bare_cr_line_ends(const std::string& text, const std::string& src) {
+  if (text.find('\n') != std::string::npos) return;
+  const auto cr = text.find('\r');
+  if (cr == std::string::npos || cr + 1 == text.size()) return;
+  fail(src, 1, 0,
+       "the lines end in a bare CR (carriage return without a line feed, the classic Mac line end), so the whole file "
+       "reads as one line: convert it, e.g. `tr '\\r' '\\n' < " + src + " > converted.csv`");
+}
+
+// A cell or line holding a carriage return: lines joined by bare CRs (part of the file converted).
+std::string bare_cr_hint(const std::string& text) {
+  return text.find('\r') == std::string::npos ? ""
+                                               : " (it holds a bare CR: lines that end in a carriage return without a line "
+                                                 "feed? convert them, e.g. with `tr '\\r' '\\n'`)";
+}
+
+// A header line where a data row belongs: two recordings joined into one file (cat a.csv b.csv),
+// which read as "bad number 'time_s'".
+[[noreturn]] void refuse_second_header(const std::string& src, std::size_t line, std::size_t first_header,
+                                       std::size_t metadata_after_rows) {
+  std::string what = "a second header line (the first is line " + std::to_string(first_header) + ")";
+  if (metadata_after_rows > 0)
+    what += ", after a metadata comment block that starts again at line " + std::to_string(metadata_after_rows);
+  fail(src, line, 0, what + ": two recordings joined into one file? give each recording as a file of its own");
+}
+
 // A cell as an error message shows it: cut to 40 characters (a line without commas may be huge).
 std::string shown(const std::string& cell) { return cell.size() <= 40 ? cell : cell.substr(0, 40) + "..."; }
 
@@ -81,7 +109,7 @@ double parse_number(const std::string& cell, bool allow_empty, const std::string
     fail(src, line, col, "column '" + column_name + "': '" + shown(cell) + "' is beyond the range of a number (+-1.8e308)");
   }
   if (ec != std::errc() || ptr != last)
-    fail(src, line, col, "column '" + column_name + "': bad number '" + shown(cell) + "'");
+    fail(src, line, col, "column '" + column_name + "': bad number '" + shown(cell) + "'" + bare_cr_hint(cell));
   if (!std::isfinite(v)) fail(src, line, col, "column '" + column_name + "': non-finite value '" + shown(cell) + "'");
   return v;
 }
@@ -141,8 +169,10 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
   // first column's name, and refusing the header over an invisible mark helps nobody.
   static constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
   std::istringstream in(std::string_view(text).substr(0, kUtf8Bom.size()) == kUtf8Bom ? text.substr(kUtf8Bom.size()) : text);
+  refuse_bare_cr_line_ends(text, source);
   std::string raw;
-  std::size_t line_no = 0;
+  std::size_t line_no = 0, header_line = 0;
+  std::size_t comments_after_rows = 0;  // where the comment lines since the last data row start (0: none)
   bool have_header = false;
   std::vector<std::vector<double>> temps;
   while (std::getline(in, raw)) {
@@ -156,9 +186,11 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
         rec.meta.emplace_back(body, "");
       else
         rec.meta.emplace_back(trim(body.substr(0, colon)), trim(body.substr(colon + 1)));
+      if (!temps.empty() && comments_after_rows == 0) comments_after_rows = line_no;
       continue;
     }
     auto cells = split_cells(line);
+    if (have_header && cells[0] == "time_s") refuse_second_header(source, line_no, header_line, comments_after_rows);
     if (!have_header) {
       static const char* kFixed[3] = {"time_s", "speed_rpm", "ambient_c"};
       for (std::size_t c = 0; c < 3; ++c) {
@@ -181,6 +213,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
         rec.channels.push_back(cells[c]);
       }
       have_header = true;
+      header_line = line_no;
       continue;
     }
     const std::size_t ncol = 3 + rec.channels.size();
@@ -188,7 +221,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
       std::ostringstream os;
       os << "expected " << ncol << " cells, found " << cells.size();
       if (cells.size() < ncol) os << " (missing column '" << (cells.size() >= 3 ? rec.channels[cells.size() - 3] : "ambient_c") << "')";
-      fail(source, line_no, std::min(cells.size(), ncol) + (cells.size() < ncol ? 1 : 1), os.str());
+      fail(source, line_no, std::min(cells.size(), ncol) + (cells.size() < ncol ? 1 : 1), os.str() + bare_cr_hint(line));
     }
     const double t = parse_number(cells[0], false, source, line_no, 1, "time_s");
     if (!rec.time_s.empty() && !(t > rec.time_s.back()))
@@ -217,6 +250,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
       row[c] = check_temperature(parse_number(cells[3 + c], true, source, line_no, 4 + c, rec.channels[c]), cells[3 + c],
                                  source, line_no, 4 + c, rec.channels[c]);
     temps.push_back(std::move(row));
+    comments_after_rows = 0;
   }
   if (!have_header) fail(source, line_no, 0, "no header line 'time_s,speed_rpm,ambient_c,...' found");
   if (temps.empty()) fail(source, line_no, 0, "no data rows");

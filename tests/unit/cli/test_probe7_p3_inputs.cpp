@@ -13,8 +13,6 @@
 namespace btsm::test {
 namespace {
 
-bool mentions(const CliResult& r, const std::string& s) { return r.err.find(s) != std::string::npos; }
-
 std::string key_hex() { return std::string(63, '0') + "5\n"; }
 
 // P3-k: the key was read after connecting, so a bad --key-file with no module there was exit 3
@@ -37,6 +35,47 @@ TEST(Probe7P3, ABadKeyFileIsExitTwoBeforeAnyModuleIsAsked) {
   ::chmod(d.file("0000de74.key").c_str(), 0600);
   const CliResult good = run_btsm(d, "flash-model m.bin --port /nonexistent/tty --key-file 0000de74.key");
   EXPECT_EQ(good.code, 3) << good.err;
+}
+
+std::string replaced(std::string text, char from, char to) {
+  for (char& c : text)
+    if (c == from) c = to;
+  return text;
+}
+
+// P3-h: lines ending in a bare CR (classic Mac) read as one line, "no header line found"; part of
+// a file converted that way ran two rows into one, "expected 7 cells, found 13".
+TEST(Probe7P3, LinesEndingInABareCarriageReturnAreNamedWithTheConversion) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("mac.csv"), replaced(recording_csv(200), '\n', '\r'));
+  std::string part = recording_csv(200);
+  part[part.find("\n100,")] = '\r';  // the row at t = 90 s runs into the one at 100 s
+  write_text(d.file("part.csv"), part);
+  expect_refusals(d, {{"validate model.json mac.csv", "mac.csv:1: the lines end in a bare CR"},
+                      {"validate model.json mac.csv", "tr '\\r' '\\n' < mac.csv"},
+                      {"validate model.json part.csv", "part.csv:12:8: expected 7 cells, found 13 (it holds a bare CR"}});
+  write_text(d.file("crlf.csv"), [] {
+    std::string s;
+    for (char c : recording_csv(200)) s += c == '\n' ? std::string("\r\n") : std::string(1, c);
+    return s;
+  }());
+  EXPECT_EQ(run_btsm(d, "validate model.json crlf.csv").code, 0);
+}
+
+// P3-h: two recordings joined into one file (cat a.csv b.csv) said "bad number 'time_s'".
+TEST(Probe7P3, ASecondHeaderMidFileIsNamedAsTwoRecordingsJoined) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  const std::string one = recording_csv(200);  // line 1 "# source", line 2 header, rows 3..202
+  write_text(d.file("joined.csv"), one + one);
+  std::string repeated = one;
+  repeated.insert(repeated.find("\n100,") + 1, "time_s,speed_rpm,ambient_c,T1,T2,T3,T4\n");
+  write_text(d.file("repeated.csv"), repeated);
+  expect_refusals(d, {{"validate model.json joined.csv",
+                       "joined.csv:204: a second header line (the first is line 2), after a metadata comment block that "
+                       "starts again at line 203: two recordings joined into one file?"},
+                      {"validate model.json repeated.csv", "repeated.csv:13: a second header line (the first is line 2): two"}});
 }
 
 }  // namespace
