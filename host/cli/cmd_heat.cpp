@@ -274,7 +274,7 @@ void register_heat_commands(CLI::App& app) {
   cmd->add_option("model", args->model,
                   "Model: fitted model JSON (network + parameter values), a network JSON whose parameters have values, "
                   "or a preset name (spindle4)")->required();
-  cmd->add_option("recording", args->recording, "Recording CSV (time_s,speed_rpm,ambient_c,T...)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("recording", args->recording, "Recording CSV (time_s,speed_rpm,ambient_c,T...)")->required()->check(existing_input_file());
   cmd->add_option("--step", args->step_s, "Sources are constant over steps of this length [s] (default 60)");
   cmd->add_option("--method", args->method, "tikhonov0 (penalise |q|) or tikhonov1 (penalise changes of q; default)");
   cmd->add_option("--alpha-rule", args->rule,

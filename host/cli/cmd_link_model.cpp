@@ -159,7 +159,7 @@ void register_flash_model(CLI::App& app) {
       "The blob's channel map (the node each channel's model predicts) is compared with the module's channel\n"
       "roles first: a channel the module would check against another node's model is refused unless --force.");
   add_link_options(*c, a->link);
-  c->add_option("file", a->file, "model blob (.bin) or JSON with the blob")->required()->check(CLI::ExistingFile);
+  c->add_option("file", a->file, "model blob (.bin) or JSON with the blob")->required()->check(existing_input_file());
   c->add_option("--key-file", a->key_file, "use this key file instead of the key store (must be mode 0600)");
   c->add_flag("--json", a->json, "print the summary as JSON");
   c->add_flag("--force", a->force, "flash even when the model's channel map disagrees with the module's channel roles");

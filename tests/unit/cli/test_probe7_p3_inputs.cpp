@@ -7,6 +7,7 @@
 
 #include <gtest/gtest.h>
 #include <sys/stat.h>
+#include <unistd.h>
 
 #include <string>
 
@@ -76,6 +77,35 @@ TEST(Probe7P3, ASecondHeaderMidFileIsNamedAsTwoRecordingsJoined) {
                        "joined.csv:204: a second header line (the first is line 2), after a metadata comment block that "
                        "starts again at line 203: two recordings joined into one file?"},
                       {"validate model.json repeated.csv", "repeated.csv:13: a second header line (the first is line 2): two"}});
+}
+
+// P3-h, P3-l: a symbolic-link loop given as an input was "File does not exist"; a link to nothing
+// too; a symlinked key file was "Too many levels of symbolic links" (O_NOFOLLOW's errno).
+TEST(Probe7P3, AnInputThatCannotBeOpenedIsNamedWithTheCause) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(200));
+  ASSERT_EQ(::symlink("loop_b.csv", d.file("loop_a.csv").c_str()), 0);
+  ASSERT_EQ(::symlink("loop_a.csv", d.file("loop_b.csv").c_str()), 0);
+  ASSERT_EQ(::symlink("gone.csv", d.file("dangling.csv").c_str()), 0);
+  ASSERT_EQ(::symlink("loop_a.csv", d.file("loop.json").c_str()), 0);
+  expect_refusals(d, {{"validate model.json loop_a.csv", "loop_a.csv: a symbolic-link loop (ELOOP"},
+                      {"validate loop.json rec.csv", "loop.json: a symbolic-link loop (ELOOP"},
+                      {"validate model.json dangling.csv", "dangling.csv: a symbolic link to 'gone.csv', which does not exist"},
+                      {"heat loop.json rec.csv", "loop.json: cannot open model or network JSON: a symbolic-link loop (ELOOP"},
+                      {"flash-firmware --device-id 0000de70 --dry-run --hex loop_a.csv", "a symbolic-link loop (ELOOP"},
+                      {"validate model.json nosuch.csv", "File does not exist: nosuch.csv"}});
+  // A key in the key store that is a symbolic link (to a good key).
+  const std::string keys = d.path + "/.config/btsm/keys";
+  ASSERT_EQ(::system(("mkdir -p " + keys).c_str()), 0);
+  write_text(d.file("real.key"), key_hex());
+  ::chmod(d.file("real.key").c_str(), 0600);
+  ASSERT_EQ(::symlink(d.file("real.key").c_str(), (keys + "/0000de70.key").c_str()), 0);
+  const CliResult list = run_btsm(d, "keys list");
+  EXPECT_EQ(list.code, 0) << list.err;
+  EXPECT_NE(list.out.find("UNUSABLE: key file " + keys + "/0000de70.key is a symbolic link (key files must be regular files)"),
+            std::string::npos)
+      << list.out;
 }
 
 }  // namespace
