@@ -108,5 +108,26 @@ TEST(Probe7P3, AnInputThatCannotBeOpenedIsNamedWithTheCause) {
       << list.out;
 }
 
+// P3-a: --alpha-range 1 1e-3 was blamed on the recording after the run started ("rec.csv: heat
+// inverse: bad alpha grid"); --alpha 1e300 failed with exit 1 after the work. Both are refused as
+// they are parsed, naming the option and its range.
+TEST(Probe7P3, HeatAlphaOptionsOutsideTheirRangeAreRefusedAsTheyAreParsed) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  write_text(d.file("rec.csv"), recording_csv(200));
+  expect_refusals(d, {{"heat model.json rec.csv --alpha-range 1 1e-3", "--alpha-range: MIN 1 is not below MAX 1e-3"},
+                      {"heat model.json rec.csv --alpha-range 1 1", "--alpha-range: MIN 1 is not below MAX 1"},
+                      {"heat model.json rec.csv --alpha-range -1 1", "--alpha-range: MIN -1 is outside 1e-15..1e9 K^2/W^2"},
+                      {"heat model.json rec.csv --alpha-range 1e-3 1e12", "--alpha-range: MAX 1e12 is outside 1e-15..1e9"},
+                      {"heat model.json rec.csv --alpha-range x 1", "--alpha-range: MIN 'x' is not a number"},
+                      {"heat model.json rec.csv --alpha-rule fixed --alpha 1e300", "--alpha: 1e300 is outside 1e-15..1e9 K^2/W^2"},
+                      {"heat model.json rec.csv --alpha-rule fixed --alpha 0", "--alpha: 0 is outside 1e-15..1e9"}});
+  for (const CliResult& r : {run_btsm(d, "heat model.json rec.csv --alpha-range 1 1e-3"),
+                             run_btsm(d, "heat model.json rec.csv --alpha-rule fixed --alpha 1e300")})
+    EXPECT_EQ(r.err.find("heat: 200 samples"), std::string::npos) << r.err;  // before any work
+  const CliResult ok = run_btsm(d, "heat model.json rec.csv --alpha-range 1e-12 1e2");
+  EXPECT_EQ(ok.code, 0) << ok.err;
+}
+
 }  // namespace
 }  // namespace btsm::test
