@@ -9,7 +9,10 @@
 #include <sys/stat.h>
 #include <unistd.h>
 
+#include <cstdint>
+#include <cstdio>
 #include <string>
+#include <vector>
 
 namespace btsm::test {
 namespace {
@@ -127,6 +130,36 @@ TEST(Probe7P3, HeatAlphaOptionsOutsideTheirRangeAreRefusedAsTheyAreParsed) {
     EXPECT_EQ(r.err.find("heat: 200 samples"), std::string::npos) << r.err;  // before any work
   const CliResult ok = run_btsm(d, "heat model.json rec.csv --alpha-range 1e-12 1e2");
   EXPECT_EQ(ok.code, 0) << ok.err;
+}
+
+// One Intel HEX record (":LLAAAATT<data>CC").
+std::string hex_record(unsigned address, unsigned type, const std::vector<uint8_t>& data) {
+  unsigned sum = static_cast<unsigned>(data.size()) + (address >> 8) + (address & 0xFF) + type;
+  char buf[16];
+  std::snprintf(buf, sizeof buf, ":%02X%04X%02X", static_cast<unsigned>(data.size()), address, type);
+  std::string line = buf;
+  for (uint8_t b : data) {
+    std::snprintf(buf, sizeof buf, "%02X", b);
+    line += buf;
+    sum += b;
+  }
+  std::snprintf(buf, sizeof buf, "%02X\n", (0x100 - (sum & 0xFF)) & 0xFF);
+  return line + buf;
+}
+
+// P3-m: data at or past the bootloader (0x7E00) or beyond 32 KiB was refused naming the address
+// only; the README promises the line too.
+TEST(Probe7P3, FirmwareDataOverTheBootloaderNamesItsHexLine) {
+  ScratchDir d;
+  const std::vector<uint8_t> sixteen(16, 0xAA);
+  const std::string start = hex_record(0x0000, 0x00, sixteen) + hex_record(0x0010, 0x00, sixteen);
+  const std::string eof = hex_record(0, 0x01, {});
+  write_text(d.file("boot.hex"), start + hex_record(0x7E00, 0x00, sixteen) + eof);
+  write_text(d.file("high.hex"), start + hex_record(0, 0x04, {0x00, 0x01}) + hex_record(0x0000, 0x00, sixteen) + eof);
+  write_text(d.file("seg.hex"), start + "\n" + hex_record(0, 0x02, {0x10, 0x00}) + hex_record(0x0000, 0x00, sixteen) + eof);
+  expect_refusals(d, {{"flash-firmware --device-id 0000de70 --dry-run --hex boot.hex", "boot.hex:3: data at 0x7E00: an application"},
+                      {"flash-firmware --device-id 0000de70 --dry-run --hex high.hex", "high.hex:4: data at 0x10000"},
+                      {"flash-firmware --device-id 0000de70 --dry-run --hex seg.hex", "seg.hex:5: data at 0x10000"}});
 }
 
 }  // namespace
