@@ -2,6 +2,7 @@
 // hand and produced by several tools.
 #include "recording.hpp"
 #include "recording_metadata.hpp"
+#include "sensor_faults.hpp"
 
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
@@ -87,6 +88,17 @@ std::string bare_cr_hint(const std::string& text) {
 
 // A cell as an error message shows it: cut to 40 characters (a line without commas may be huge).
 std::string shown(const std::string& cell) { return cell.size() <= 40 ? cell : cell.substr(0, 40) + "..."; }
+
+// '# sensor_fault:' lines say why cells are empty; nothing acts on them (README: comment lines), so
+// a malformed one (channel T9, code 'melted', a range backwards or 'nan') is a warning naming its
+// line, not a refusal of the recording.
+void warn_of_malformed_sensor_fault(Recording& rec, std::size_t line) {
+  const auto& [key, value] = rec.meta.back();
+  if (key != kSensorFaultKey) return;
+  if (const std::string why = sensor_fault_line_problem(value); !why.empty())
+    rec.warnings.push_back(rec.source + ":" + std::to_string(line) + ": '# " + key + ": " + shown(value) + "': " + why +
+                           "; the line is informative only (why a cell is empty) and is ignored");
+}
 
 // Parses a finite number or throws with position. Empty -> NaN only if allow_empty.
 double parse_number(const std::string& cell, bool allow_empty, const std::string& src, std::size_t line,
@@ -186,6 +198,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
         rec.meta.emplace_back(body, "");
       else
         rec.meta.emplace_back(trim(body.substr(0, colon)), trim(body.substr(colon + 1)));
+      warn_of_malformed_sensor_fault(rec, line_no);
       if (!temps.empty() && comments_after_rows == 0) comments_after_rows = line_no;
       continue;
     }

@@ -24,6 +24,9 @@ struct Recording {
   std::vector<double> time_s, speed_rpm, ambient_c;
   Eigen::MatrixXd temp_c;              // rows x channels, degC, NaN = missing
   std::vector<std::pair<std::string, std::string>> meta;  // "# key: value" lines, in order
+  // What the reader noticed in lines nothing acts on, and did not refuse ("FILE:LINE: ..."): a
+  // malformed '# sensor_fault:' line. Commands print them with reading_warnings().
+  std::vector<std::string> warnings;
 
   std::size_t rows() const { return time_s.size(); }
   // Index of a channel by name, or -1.

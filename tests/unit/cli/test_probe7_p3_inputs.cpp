@@ -162,5 +162,27 @@ TEST(Probe7P3, FirmwareDataOverTheBootloaderNamesItsHexLine) {
                       {"flash-firmware --device-id 0000de70 --dry-run --hex seg.hex", "seg.hex:5: data at 0x10000"}});
 }
 
+// P3-j: '# sensor_fault:' lines were read by no reader: channel T9, code 'melted', a range run
+// backwards or 'nan-inf' passed without a word. They are informative comments (README), so each
+// is a warning naming its line; the recording is still read.
+TEST(Probe7P3, AMalformedSensorFaultLineIsAWarningNamingItsLine) {
+  ScratchDir d;
+  write_text(d.file("model.json"), spindle4_model_json());
+  const std::string rows = recording_csv(200);  // 202 lines
+  write_text(d.file("faults.csv"), rows + "# sensor_fault: T9 open 10.000-20.000\n# sensor_fault: T2 melted 10-20\n"
+                                          "# sensor_fault: T2 open 50-10\n# sensor_fault: T2 open nan-inf\n"
+                                          "# sensor_fault: T2 open+adc 10.000-20.000\n# sensor_fault: T3 fault 0-1990\n");
+  const CliResult r = run_btsm(d, "validate model.json faults.csv");
+  EXPECT_EQ(r.code, 0) << r.err;
+  for (const char* says : {"faults.csv:203: '# sensor_fault: T9 open 10.000-20.000': 'T9' is not a module channel (T1..T5)",
+                           "faults.csv:204: '# sensor_fault: T2 melted 10-20': unknown fault code 'melted'",
+                           "faults.csv:205: '# sensor_fault: T2 open 50-10': the range runs backwards",
+                           "faults.csv:206: '# sensor_fault: T2 open nan-inf': FROM is not a finite number",
+                           "the line is informative only (why a cell is empty) and is ignored"})
+    EXPECT_NE(r.err.find(says), std::string::npos) << says << "\n" << r.err;
+  EXPECT_EQ(r.err.find(":207:"), std::string::npos) << r.err;  // well-formed lines say nothing
+  EXPECT_EQ(r.err.find(":208:"), std::string::npos) << r.err;
+}
+
 }  // namespace
 }  // namespace btsm::test
