@@ -333,10 +333,15 @@ std::string repeated_samples(const Recording& a, const Recording& b) {
     ++anchors;
     const double offset = a.time_s[j] - b.time_s[0];
     std::size_t matched = 0, i = j;
+    // the first and last matched rows, of b and of a: as many rows apart in both = a contiguous part
+    std::size_t first_b = 0, last_b = 0, first_a = 0, last_a = 0;
     for (std::size_t k = 0; k < b.rows(); ++k) {
       const double t = b.time_s[k] + offset, tol = 1e-9 * std::max(1.0, std::abs(t)) + 1e-6;
       while (i + 1 < a.rows() && a.time_s[i] < t - tol) ++i;  // both sorted by time
-      if (std::abs(a.time_s[i] - t) <= tol && same_row(i, k)) ++matched;
+      if (std::abs(a.time_s[i] - t) <= tol && same_row(i, k)) {
+        if (matched++ == 0) first_b = k, first_a = i;
+        last_b = k, last_a = i;
+      }
     }
     if (static_cast<double>(matched) < kShare * static_cast<double>(b.rows())) continue;
     std::string how;
@@ -345,13 +350,23 @@ std::string repeated_samples(const Recording& a, const Recording& b) {
       std::snprintf(text, sizeof text, "times shifted by %.10g s", -offset);
       how = text;
     }
-    const double per = static_cast<double>(a.rows()) / static_cast<double>(b.rows());
-    if (per >= 1.5) {
-      std::snprintf(text, sizeof text, "%s1 of every %.0f rows", how.empty() ? "" : ", ", per);
+    const char* sep = how.empty() ? "" : ", ";
+    // The first half of a recording is one of its parts, not "1 of every 2 rows" (a thinning).
+    const bool part = last_a - first_a == last_b - first_b && b.rows() < a.rows();
+    if (part) {
+      std::snprintf(text, sizeof text, "%sits rows %zu-%zu are rows %zu-%zu of ", sep, first_b + 1, last_b + 1, first_a + 1, last_a + 1);
+      how += text + a.source;
+      if (matched == b.rows()) {
+        std::snprintf(text, sizeof text, ", equal to within %.1f mK", kTolK * 1e3);
+        return how + text;
+      }
+      sep = ", ";
+    } else if (const double per = static_cast<double>(a.rows()) / static_cast<double>(b.rows()); per >= 1.5) {
+      std::snprintf(text, sizeof text, "%s1 of every %.0f rows", sep, per);
       how += text;
+      sep = ", ";
     }
-    std::snprintf(text, sizeof text, "%s%zu of its %zu rows equal to within %.1f mK", how.empty() ? "" : ", ", matched, b.rows(),
-                  kTolK * 1e3);
+    std::snprintf(text, sizeof text, "%s%zu of its %zu rows equal to within %.1f mK", sep, matched, b.rows(), kTolK * 1e3);
     return how + text;
   }
   return "";

@@ -184,5 +184,35 @@ TEST(Probe7P3, AMalformedSensorFaultLineIsAWarningNamingItsLine) {
   EXPECT_EQ(r.err.find(":208:"), std::string::npos) << r.err;
 }
 
+// The lines [from, to) of `text` (0-based), header and comment lines included.
+std::string lines_of(const std::string& text, int from, int to) {
+  std::string out;
+  int line = 0;
+  for (std::size_t at = 0, end; (end = text.find('\n', at)) != std::string::npos; at = end + 1, ++line)
+    if (line >= from && line < to) out += text.substr(at, end - at + 1);
+  return out;
+}
+
+// P3-e: the first half of the fit recording given as the check was described as "1 of every 2
+// rows" (a thinning); a contiguous part now says which rows of the fit recording it holds.
+TEST(Probe7P3, APartOfTheFitRecordingAsTheCheckIsNamedAsThatPart) {
+  ScratchDir d;
+  const std::string all = recording_csv(200);  // line 0 "# source", line 1 header, rows on lines 2..201
+  write_text(d.file("a.csv"), all);
+  write_text(d.file("first_half.csv"), lines_of(all, 0, 102));
+  write_text(d.file("middle.csv"), lines_of(all, 0, 2) + lines_of(all, 52, 152));
+  write_text(d.file("thinned.csv"), [&] {
+    std::string t = lines_of(all, 0, 2);
+    for (int k = 2; k < 202; k += 2) t += lines_of(all, k, k + 1);
+    return t;
+  }());
+  expect_refusals(d, {{"residual --preset spindle4 --fit a.csv --check first_half.csv",
+                       "(its rows 1-100 are rows 1-100 of a.csv, equal to within 0.5 mK)"},
+                      {"residual --preset spindle4 --fit a.csv --check middle.csv", "(its rows 1-100 are rows 51-150 of a.csv, equal"},
+                      {"residual --preset spindle4 --fit a.csv --check thinned.csv", "(1 of every 2 rows, 100 of its 100 rows"}});
+  const CliResult half = run_btsm(d, "residual --preset spindle4 --fit a.csv --check first_half.csv");
+  EXPECT_EQ(half.err.find("of every"), std::string::npos) << half.err;
+}
+
 }  // namespace
 }  // namespace btsm::test
