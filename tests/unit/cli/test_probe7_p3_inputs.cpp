@@ -214,5 +214,25 @@ TEST(Probe7P3, APartOfTheFitRecordingAsTheCheckIsNamedAsThatPart) {
   EXPECT_EQ(half.err.find("of every"), std::string::npos) << half.err;
 }
 
+// P3-c: `rtd r2t 1e-400` was "not a number" while a recording reads 1e-400 as 0, and `rtd --r0
+// 1e-300` was taken and printed 0.0000. Values read as a recording's cells do; --r0 has a range.
+TEST(Probe7P3, RtdReadsNumbersAsRecordingsDoAndRefusesAnImplausibleR0) {
+  ScratchDir d;
+  expect_refusals(d, {{"rtd r2t 1e-400", "value #1 '1e-400' ohm: below the IEC 60751 range"},
+                      {"rtd r2t 1e400", "value #1 '1e400' is beyond the range of a number"},
+                      {"rtd t2r --r0 1e-300 0", "--r0 must be a resistance in ohm in 10...1e6"},
+                      {"rtd t2r --r0 1e-400 0", "--r0 must be a resistance in ohm in 10...1e6 (Pt10 to beyond Pt10000; 100 = "
+                                                "Pt100, 1000 = Pt1000), got 1e-400"},
+                      {"rtd t2r --r0 5 0", "got 5"},
+                      {"rtd t2r --r0 2e6 0", "got 2e6"},
+                      {"rtd t2r --r0 0x64 0", "--r0: '0x64' is not a number"}});
+  const CliResult tiny = run_btsm(d, "rtd t2r --r0 100 1e-320");
+  EXPECT_EQ(tiny.code, 0) << tiny.err;
+  EXPECT_EQ(tiny.out, "100.0000\n");
+  const CliResult pt10 = run_btsm(d, "rtd t2r --r0 10 0");
+  EXPECT_EQ(pt10.code, 0) << pt10.err;
+  EXPECT_EQ(pt10.out, "10.0000\n");
+}
+
 }  // namespace
 }  // namespace btsm::test
