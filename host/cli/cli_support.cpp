@@ -1,5 +1,9 @@
 #include "cli_support.hpp"
 #include "host/io/decimal_number.hpp"
+#include "host/io/input_file.hpp"
+#include "host/io/utf8_text.hpp"
+
+#include <sys/stat.h>
 
 #include <cerrno>
 #include <cmath>
@@ -83,6 +87,21 @@ CLI::Validator bound_check(bool strict, const char* name) {
       "", name);
 }
 }  // namespace
+
+CLI::Validator existing_input_file() {
+  return CLI::Validator(
+      [](std::string& path) -> std::string {
+        struct stat st {};
+        // The parser prints this as it is: the path escaped here (a newline in it forged a line).
+        if (::stat(path.c_str(), &st) == 0) return S_ISDIR(st.st_mode) ? "File is actually a directory: " + io::printable(path) : "";
+        const int err = errno;
+        const std::string why = io::open_failure_reason(path, err);
+        if (err == ENOENT && why == "no such file or directory")
+          return "File does not exist: " + io::printable(path);  // CLI11's words, which scripts may look for
+        return io::printable(path) + ": " + io::printable(why);
+      },
+      "FILE", "existing input file");
+}
 
 CLI::Validator positive_number() { return bound_check(true, "positive number"); }
 CLI::Validator non_negative_number() { return bound_check(false, "non-negative number"); }

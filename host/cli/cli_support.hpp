@@ -48,6 +48,11 @@ std::string given_columns(const std::vector<std::string>& columns);
 // taken as 2^64-1).
 void refuse_non_finite_numbers(CLI::App& app);
 
+// CLI11's ExistingFile, with the cause when the file cannot be examined: a symbolic-link loop,
+// a dangling link, a directory on the path that may not be entered (CLI11 said "File does not
+// exist" for each).
+CLI::Validator existing_input_file();
+
 // CLI11's PositiveNumber / NonNegativeNumber, with a message a user can read ("must be > 0, got
 // 0"), not "not in range 0.000000 to 1797...(300 digits)".
 CLI::Validator positive_number();

@@ -27,6 +27,31 @@ namespace {
 
 namespace th = btsm::thermal;
 
+// The regularisation parameters --alpha and --alpha-range may take [K^2/W^2]: the default scan is
+// 1e-10..1e3; on the demo recordings a fixed alpha below ~1e-20 or above ~1e12 left the smoother's
+// covariance without a digit (exit 1 after the run, "effective parameters came out 7.7e+23"). The
+// bounds keep five decades beyond the default scan on either side.
+constexpr double kMinAlpha = 1e-15, kMaxAlpha = 1e9;
+constexpr const char* kAlphaBounds = "1e-15..1e9";
+
+std::string alpha_problem(const std::string& text) {
+  double x = 0;
+  if (!parse_decimal(text, x)) return "'" + io::printable(text) + "' is not a number";
+  if (!(x >= kMinAlpha && x <= kMaxAlpha))
+    return fmt::format("{} is outside {} K^2/W^2 (the default scan is 1e-10..1e3)", io::printable(text), kAlphaBounds);
+  return "";
+}
+
+// One bound of --alpha-range, checked as it is parsed (it was blamed on the recording, after the run started).
+double alpha_value(const std::string& option, const std::string& which, const std::string& text) {
+  if (const std::string why = alpha_problem(text); !why.empty()) throw CLI::ValidationError(option, which + " " + why);
+  return std::stod(text);
+}
+
+CLI::Validator alpha_bounds(const std::string& option) {
+  return CLI::Validator([option](std::string& text) { return alpha_problem(text); }, "", option + " bounds");
+}
+
 struct HeatArgs {
   std::string model, recording, method = "tikhonov1", rule = "gcv", scheme = "cn", out_dir, nodes;
   double step_s = 60.0, alpha = 0.0, noise_k = 0.0, alpha_min = 1e-10, alpha_max = 1e3;
@@ -274,19 +299,25 @@ void register_heat_commands(CLI::App& app) {
   cmd->add_option("model", args->model,
                   "Model: fitted model JSON (network + parameter values), a network JSON whose parameters have values, "
                   "or a preset name (spindle4)")->required();
-  cmd->add_option("recording", args->recording, "Recording CSV (time_s,speed_rpm,ambient_c,T...)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("recording", args->recording, "Recording CSV (time_s,speed_rpm,ambient_c,T...)")->required()->check(existing_input_file());
   cmd->add_option("--step", args->step_s, "Sources are constant over steps of this length [s] (default 60)");
   cmd->add_option("--method", args->method, "tikhonov0 (penalise |q|) or tikhonov1 (penalise changes of q; default)");
   cmd->add_option("--alpha-rule", args->rule,
                   "How alpha is chosen: gcv (default), lcurve, discrepancy (needs the noise level; estimated if not given), "
                   "montecarlo (the paper's ICO random search, threshold tied to the noise level), fixed (--alpha)");
-  cmd->add_option("--alpha", args->alpha, "Regularisation parameter for --alpha-rule fixed [K^2/W^2]");
+  cmd->add_option("--alpha", args->alpha,
+                  fmt::format("Regularisation parameter for --alpha-rule fixed [K^2/W^2], {}", kAlphaBounds))
+      ->check(alpha_bounds("--alpha"));
   cmd->add_option("--alpha-range", [args](const std::vector<std::string>& v) {
         if (v.size() != 2) return false;
-        args->alpha_min = std::stod(v[0]);
-        args->alpha_max = std::stod(v[1]);
+        args->alpha_min = alpha_value("--alpha-range", "MIN", v[0]);
+        args->alpha_max = alpha_value("--alpha-range", "MAX", v[1]);
+        if (!(args->alpha_min < args->alpha_max))
+          throw CLI::ValidationError("--alpha-range", fmt::format("MIN {} is not below MAX {}: give MIN MAX, MIN < MAX, each in {} K^2/W^2",
+                                                                  io::printable(v[0]), io::printable(v[1]), kAlphaBounds));
         return true;
-      }, "Search range MIN MAX of alpha [K^2/W^2] (default 1e-10 1e3)")->expected(2);
+      }, fmt::format("Search range MIN MAX of alpha [K^2/W^2], MIN < MAX, each in {} (default 1e-10 1e3)", kAlphaBounds))
+      ->expected(2);
   // 1000 log-spaced points over 13 decades are 3 % apart, finer than any rule can tell; each
   // point is one smoother run (seconds on a large network), so 100,000 ran for days.
   cmd->add_option("--alpha-points", args->alpha_points, "Grid points of the alpha scan, 3..1000 (default 40)")

@@ -70,9 +70,9 @@ HexImage read_application_image(const std::string& given) {
   }
   constexpr uint32_t kBootloaderStart = device_key::kFlashAddress + device_key::kRecordSize;
   if (const auto first = img.bytes.lower_bound(kBootloaderStart); first != img.bytes.end())
-    throw io::InputError(fmt::format("{}: data at 0x{:04X}: an application image for the Bluno ends below the bootloader at "
+    throw io::InputError(fmt::format("{}:{}: data at 0x{:04X}: an application image for the Bluno ends below the bootloader at "
                                       "0x{:04X} (32 KiB flash, 512 B Optiboot)",
-                                      path, first->first, kBootloaderStart));
+                                      path, img.line_of(first->first), first->first, kBootloaderStart));
   return img;
 }
 

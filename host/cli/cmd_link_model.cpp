@@ -14,6 +14,7 @@
 #include <filesystem>
 #include <iostream>
 #include <memory>
+#include <optional>
 
 namespace btsm::cli {
 namespace {
@@ -26,19 +27,29 @@ struct FlashModelArgs {
   bool json = false, force = false;
 };
 
-// The signing key: from --key-file (named <device_id>.key, for this module) or the key store.
-DeviceKey signing_key(const FlashModelArgs& a, uint32_t module_device_id) {
-  if (a.key_file.empty()) return KeyStore::from_environment().load(module_device_id);
-  const auto p = std::filesystem::absolute(a.key_file);
-  const auto stem = p.stem().string();
-  const auto id = parse_device_id(stem);
+// A --key-file is read and checked before connecting: a bad key file is bad input (exit 2)
+// whether or not a module answers. Its device id is in its name (<device_id>.key).
+struct KeyFromFile {
+  uint32_t device_id = 0;
+  DeviceKey key{};
+};
+
+KeyFromFile read_key_file(const std::string& key_file) {
+  const auto p = std::filesystem::absolute(key_file);
+  const auto id = parse_device_id(p.stem().string());
   KeyStore ks(p.parent_path().string());
   if (!id || ks.path_for(*id) != p.string())
-    throw CommandError(kExitUsage, "--key-file must be named <device_id>.key (8 hex digits), got " + a.key_file);
-  if (*id != module_device_id)
-    throw CommandError(kExitUsage, fmt::format("--key-file is for device {}, the module is {}", stem,
-                                               device_id_text(module_device_id)));
-  return ks.load(*id);
+    throw CommandError(kExitUsage, "--key-file must be named <device_id>.key (8 hex digits), got " + io::printable(key_file));
+  return {*id, ks.load(*id)};
+}
+
+// The signing key: the --key-file read before connecting (for this module), or the key store's.
+DeviceKey signing_key(const std::optional<KeyFromFile>& from_file, const FlashModelArgs& a, uint32_t module_device_id) {
+  if (!from_file) return KeyStore::from_environment().load(module_device_id);
+  if (from_file->device_id != module_device_id)
+    throw CommandError(kExitUsage, fmt::format("--key-file {} is for device {}, the module is {}", io::printable(a.key_file),
+                                               device_id_text(from_file->device_id), device_id_text(module_device_id)));
+  return from_file->key;
 }
 
 void print_flash_summary(const FlashModelArgs& a, const FlashSummary& s) {
@@ -107,9 +118,9 @@ void print_speed_coverage(const nlohmann::json& c) {
 }
 
 void run_flash_model(const FlashModelArgs& a) {
-  // The key file's name is checked before connecting (its device id is compared after).
-  if (!a.key_file.empty() && !parse_device_id(std::filesystem::path(a.key_file).stem().string()))
-    throw CommandError(kExitUsage, "--key-file must be named <device_id>.key (8 hex digits), got " + a.key_file);
+  // The key file is read and checked before connecting (its device id is compared after).
+  std::optional<KeyFromFile> from_file;
+  if (!a.key_file.empty()) from_file = read_key_file(a.key_file);
   const auto blob = load_model_blob(a.file);
   const std::string why = check_model_blob(blob);
   if (!why.empty()) throw CommandError(kExitUsage, a.file + ": " + why);
@@ -118,7 +129,7 @@ void run_flash_model(const FlashModelArgs& a) {
   auto conn = connect(a.link);
   const auto info = conn.session->get_info();
   check_map_before_flashing(a, *conn.session, blob);
-  const DeviceKey key = signing_key(a, info.device_id);
+  const DeviceKey key = signing_key(from_file, a, info.device_id);
   const bool tty = ::isatty(STDERR_FILENO);
   FlashOptions fo;
   fo.progress = [&](const FlashProgress& p) {
@@ -148,7 +159,7 @@ void register_flash_model(CLI::App& app) {
       "The blob's channel map (the node each channel's model predicts) is compared with the module's channel\n"
       "roles first: a channel the module would check against another node's model is refused unless --force.");
   add_link_options(*c, a->link);
-  c->add_option("file", a->file, "model blob (.bin) or JSON with the blob")->required()->check(CLI::ExistingFile);
+  c->add_option("file", a->file, "model blob (.bin) or JSON with the blob")->required()->check(existing_input_file());
   c->add_option("--key-file", a->key_file, "use this key file instead of the key store (must be mode 0600)");
   c->add_flag("--json", a->json, "print the summary as JSON");
   c->add_flag("--force", a->force, "flash even when the model's channel map disagrees with the module's channel roles");

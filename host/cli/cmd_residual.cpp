@@ -166,8 +166,8 @@ void register_residual_commands(CLI::App& app) {
       "ambient_dynamics, second_boundary, event_conductance, latent_mass. Verdict: effect, partial (explains part of\n"
       "the check error only; reported, never claimed), none (nothing beyond noise) or unexplained; with the effect's\n"
       "quantities in physical terms and RMSE / NMSE / max error before and after on fit and check recordings.");
-  cmd->add_option("--fit", a->fit, "Recording CSV(s) to fit on")->required()->check(CLI::ExistingFile);
-  cmd->add_option("--check", a->check, "Recording CSV(s) to score on (not used for fitting)")->required()->check(CLI::ExistingFile);
+  cmd->add_option("--fit", a->fit, "Recording CSV(s) to fit on")->required()->check(existing_input_file());
+  cmd->add_option("--check", a->check, "Recording CSV(s) to score on (not used for fitting)")->required()->check(existing_input_file());
   cmd->add_option("--preset", a->preset, "Base network preset (spindle4)");
   cmd->add_option("--network", a->network, "Base network JSON, or with --use-values a fitted model (its measured columns must be in every recording)");
   cmd->add_option("--column", a->columns, "NODE=COLUMN: which recording column measures a node (repeatable; NODE= drops it)");

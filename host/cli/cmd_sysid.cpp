@@ -682,9 +682,9 @@ void register_sysid_commands(CLI::App& app) {
         "A recording from `btsm record` carries the module's channel roles: nodes named like a role are measured by\n"
         "the channel with that role (or by none), as printed. With the default roles (ch5 spare) and the fifth probe\n"
         "on the shaft end, add --column shaft=T5 (the model JSON keeps the mapping for validate, reduce and heat).");
-    c->add_option("recordings", a->recordings, "Recording CSV files (time_s,speed_rpm,ambient_c,T1..)")->required()->check(CLI::ExistingFile);
+    c->add_option("recordings", a->recordings, "Recording CSV files (time_s,speed_rpm,ambient_c,T1..)")->required()->check(existing_input_file());
     c->add_option("--preset", a->preset, "Built-in network: spindle4 (Lo, Hu & Chang 2018)");
-    c->add_option("--network", a->network, "Network description JSON (see README: Network JSON)")->check(CLI::ExistingFile);
+    c->add_option("--network", a->network, "Network description JSON (see README: Network JSON)")->check(existing_input_file());
     c->add_option("--sum-c", a->sum_c, "Known total heat capacity sum C_i in J/K (scale gauge)")->check(positive_number());
     c->add_option("--column", a->columns, "NODE=COLUMN: which recording column measures a node (repeatable; NODE= drops it)");
     c->add_option("--out", a->out, "Model JSON to write")->required();
@@ -707,8 +707,8 @@ void register_sysid_commands(CLI::App& app) {
         "5 slowest time constants that ends in a stop (probe values missing at the stop are extrapolated back).\n"
         "The initial state is estimated from the first --initial-rows rows only (honest external validation); a\n"
         "recording not longer than that is refused, one shorter than 4x that warned about.");
-    c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(CLI::ExistingFile);
-    c->add_option("recordings", a->recordings, "Recording CSV files")->required()->check(CLI::ExistingFile);
+    c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(existing_input_file());
+    c->add_option("recordings", a->recordings, "Recording CSV files")->required()->check(existing_input_file());
     c->add_option("--plots", a->plots, "Directory for measured-vs-predicted and residual plots (PNG + SVG)");
     c->add_option("--initial-rows", a->initial_rows, "Rows used to estimate the initial state (default 120)")
         ->check(CLI::Range(0.0, 1e9));  // -1 wrapped to 18446744073709551615 rows
@@ -738,7 +738,7 @@ void register_sysid_commands(CLI::App& app) {
         "a model that is off by more at some speed, naming the channels and speeds (add breakpoints there, or --force\n"
         "when the spindle never runs there).\n"
         "Example: btsm reduce model.json --speeds 500,2000,4000,6000,8000 --calibrate-bands warmup_*.csv --out reduced.json --blob model.bin");
-    c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(CLI::ExistingFile);
+    c->add_option("model", a->model, "Model JSON from btsm fit")->required()->check(existing_input_file());
     c->add_option("--speeds", a->speeds, "Running breakpoints in rpm, ascending, at most 6, e.g. 500,2000,4000,6000,8000: cover every speed the spindle runs")->required();
     c->add_option("--out", a->out, "Reduced model JSON to write")->required();
     c->add_option("--blob", a->blob, "Also write the module's model blob (binary, 464 bytes)");
@@ -749,7 +749,7 @@ void register_sysid_commands(CLI::App& app) {
     c->add_option("--cooling-ref", a->cooling_ref, "Speed whose stop state shapes the stop poles (default: the middle breakpoint)")
         ->check(non_negative_number());
     auto* calibrate = c->add_option("--calibrate-bands", a->calibrate, "Recordings of normal running: set the detector from the model's own residuals on them")
-        ->check(CLI::ExistingFile);
+        ->check(existing_input_file());
     // The margin shapes only the calibration: without --calibrate-bands it did nothing, silently, and
     // one below 1 was refused only after the reduction's seconds of work (probe 4).
     c->add_option("--margin", a->rule.margin, "Calibration: WARN = margin x worst evidence + floor (default 1.5)")

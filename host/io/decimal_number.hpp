@@ -14,7 +14,12 @@
 
 namespace btsm::io {
 
-inline std::optional<double> decimal_number(std::string_view text) {
+// What a number too small for a double (1e-400) is: refused (the default), or the nearest double,
+// 0 or subnormal, as a recording's cell reads it (host/thermal/recording.cpp) -- `btsm rtd` takes it
+// so, since its values are the same kind of reading ("rtd r2t 1e-400" was "not a number").
+enum class TinyNumber { Refused, ReadAsNearest };
+
+inline std::optional<double> decimal_number(std::string_view text, TinyNumber tiny = TinyNumber::Refused) {
   const auto first = text.find_first_not_of(" \t");
   if (first == std::string_view::npos) return std::nullopt;
   const auto last = text.find_last_not_of(" \t");
@@ -23,7 +28,9 @@ inline std::optional<double> decimal_number(std::string_view text) {
   errno = 0;
   char* end = nullptr;
   const double v = std::strtod(t.c_str(), &end);
-  if (errno == ERANGE || end != t.c_str() + t.size() || !std::isfinite(v)) return std::nullopt;
+  const bool underflow = errno == ERANGE && std::abs(v) <= 1.0;  // strtod gives 0 or a subnormal
+  if ((errno == ERANGE && !(underflow && tiny == TinyNumber::ReadAsNearest)) || end != t.c_str() + t.size() || !std::isfinite(v))
+    return std::nullopt;
   return v;
 }
 

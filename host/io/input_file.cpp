@@ -58,11 +58,39 @@ std::string file_type_name(mode_t mode) {
   return "no regular file";
 }
 
+std::string open_failure_reason(const std::string& path, int err) {
+  switch (err) {
+    case ENOENT: {
+      struct stat st {};
+      if (::lstat(path.c_str(), &st) == 0 && S_ISLNK(st.st_mode)) {
+        char target[4096];
+        const ssize_t n = ::readlink(path.c_str(), target, sizeof target - 1);
+        return "a symbolic link to '" + (n > 0 ? std::string(target, static_cast<std::size_t>(n)) : std::string("?")) +
+               "', which does not exist (a dangling link)";
+      }
+      return "no such file or directory";
+    }
+    case ELOOP: return "a symbolic-link loop (ELOOP: the links lead back to each other, or more than 40 deep)";
+    case EACCES: return "permission denied (EACCES): this user may not read it, or may not enter a directory on its path";
+    case ENOTDIR: return "a part of the path before the last is not a directory (ENOTDIR)";
+    case EISDIR: return "a directory";
+    case ENAMETOOLONG: return "the path is too long (ENAMETOOLONG)";
+    default: return std::strerror(err);
+  }
+}
+
 InputFile::InputFile(const std::string& path, const std::string& what, int extra_flags) : path_(path), what_(what) {
   // O_NONBLOCK: opening a named pipe no program writes to would wait for a writer for ever; so
   // opened, the pipe reads as empty at once. Reads block again once the file is open.
   fd_ = ::open(path.c_str(), O_RDONLY | O_CLOEXEC | O_NONBLOCK | extra_flags);
-  if (fd_ < 0) throw InputError(path + ": cannot open " + what + ": " + std::strerror(errno));
+  if (fd_ < 0) {
+    const int err = errno;
+    // O_NOFOLLOW fails a symbolic link with ELOOP: it is a link, not a loop.
+    struct stat st {};
+    if (err == ELOOP && (extra_flags & O_NOFOLLOW) != 0 && ::lstat(path.c_str(), &st) == 0 && S_ISLNK(st.st_mode))
+      throw InputError(path + ": is a symbolic link (a " + what + " must be a regular file)");
+    throw InputError(path + ": cannot open " + what + ": " + open_failure_reason(path, err));
+  }
   const auto fail = [&](const std::string& why) {
     ::close(fd_);
     throw InputError(path + ": " + why);

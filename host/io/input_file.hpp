@@ -23,6 +23,11 @@ std::string size_text(std::size_t bytes);
 // "a character device", "a block device", "a symbolic link"; "" for a regular file.
 std::string file_type_name(mode_t mode);
 
+// Why `path` could not be opened or examined, from the errno of open(2)/stat(2): the cause in
+// words, not strerror's alone ("a symbolic-link loop (ELOOP)", "a symbolic link to 'x', which does
+// not exist", "permission denied (EACCES): ..."). A symbolic-link loop read as "File does not exist".
+std::string open_failure_reason(const std::string& path, int err);
+
 // An input opened for reading without waiting: opening a named pipe no program writes to waited
 // for a writer for ever (so opened, it reads as empty at once; reads block again once it is open).
 // Throws InputError naming `path` and `what` when it cannot be opened or is a directory.

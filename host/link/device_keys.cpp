@@ -88,7 +88,7 @@ void refuse_missing_or_linked_key(uint32_t id, const std::string& path) {
   if (::lstat(path.c_str(), &st) != 0 && errno == ENOENT)
     throw io::InputError("no key for device " + device_id_text(id) + " (" + path + "): create one with `btsm keys generate " +
                          device_id_text(id) + "` or `btsm keys import " + device_id_text(id) + " HEX`");
-  if (S_ISLNK(st.st_mode)) throw io::InputError("key file " + path + " is a symbolic link, not a regular file");
+  if (S_ISLNK(st.st_mode)) throw io::InputError("key file " + path + " is a symbolic link (key files must be regular files)");
 }
 
 }  // namespace

@@ -25,6 +25,12 @@ extern char** environ;
 
 namespace btsm::link {
 
+size_t HexImage::line_of(uint32_t address) const {
+  for (const HexRecordSpan& r : records)
+    if (address >= r.first && address - r.first < r.count) return r.line;
+  return 0;
+}
+
 HexImage parse_intel_hex(const std::string& text, const std::string& source) {
   HexImage img;
   std::istringstream in(text);
@@ -53,6 +59,7 @@ HexImage parse_intel_hex(const std::string& text, const std::string& source) {
     const uint32_t addr = (static_cast<uint32_t>(rec[1]) << 8) | rec[2];
     switch (rec[3]) {
       case 0x00:
+        if (len > 0) img.records.push_back({base + addr, static_cast<uint32_t>(len), line_no});
         for (size_t i = 0; i < len; ++i) {
           // a second record over the same byte with other data: which one the programmer writes
           // depends on the tool, so the image means two things

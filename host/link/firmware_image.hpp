@@ -11,10 +11,20 @@
 
 namespace btsm::link {
 
+// Where a data record of the HEX file put its bytes: [first, first + count) from line `line`.
+struct HexRecordSpan {
+  uint32_t first = 0;
+  uint32_t count = 0;
+  size_t line = 0;
+};
+
 // Sparse byte image: address -> byte, as the HEX file describes it.
 struct HexImage {
   std::map<uint32_t, uint8_t> bytes;
+  std::vector<HexRecordSpan> records;  // of a parsed file, in file order (empty for a built image)
   size_t size() const { return bytes.size(); }
+  // The line of the first data record that wrote `address`; 0 when unknown.
+  size_t line_of(uint32_t address) const;
 };
 
 // Limits of the reader (stated in its errors): the ATmega328P image is 32 KiB, about 90 kB of HEX.

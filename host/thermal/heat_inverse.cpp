@@ -508,7 +508,9 @@ ModelWithParameters load_model_with_parameters(const std::string& path_or_preset
   ModelWithParameters m;
   m.source = path_or_preset;
   std::error_code ec;
-  if (!std::filesystem::exists(path_or_preset, ec)) {
+  // Something on disk by that name (a symbolic-link loop or a dangling link too) is read as a file,
+  // so the reader names what is wrong with it; a loop was "neither a readable file nor a preset".
+  if (!std::filesystem::exists(std::filesystem::symlink_status(path_or_preset, ec))) {
     const std::vector<std::string> presets = preset_names();
     if (std::find(presets.begin(), presets.end(), path_or_preset) == presets.end())
       throw std::invalid_argument("model '" + path_or_preset + "' is neither a readable file nor a preset name");

@@ -2,6 +2,7 @@
 // hand and produced by several tools.
 #include "recording.hpp"
 #include "recording_metadata.hpp"
+#include "sensor_faults.hpp"
 
 #include "host/io/input_error.hpp"
 #include "host/io/input_file.hpp"
@@ -57,8 +58,47 @@ std::vector<std::string> split_cells(const std::string& line) {
   return cells;
 }
 
+// Lines that end in a carriage return alone (classic Mac OS, some loggers) are one line to getline:
+// named as such, with the conversion, instead of "no header line found".
+void refuse_bare_cr_line_ends(const std::string& text, const std::string& src) {
+  if (text.find('\n') != std::string::npos) return;
+  const auto cr = text.find('\r');
+  if (cr == std::string::npos || cr + 1 == text.size()) return;
+  fail(src, 1, 0,
+       "the lines end in a bare CR (carriage return without a line feed, the classic Mac line end), so the whole file "
+       "reads as one line: convert it, e.g. `tr '\\r' '\\n' < " + src + " > converted.csv`");
+}
+
+// A cell or line holding a carriage return: lines joined by bare CRs (part of the file converted).
+std::string bare_cr_hint(const std::string& text) {
+  return text.find('\r') == std::string::npos ? ""
+                                               : " (it holds a bare CR: lines that end in a carriage return without a line "
+                                                 "feed? convert them, e.g. with `tr '\\r' '\\n'`)";
+}
+
+// A header line where a data row belongs: two recordings joined into one file (cat a.csv b.csv),
+// which read as "bad number 'time_s'".
+[[noreturn]] void refuse_second_header(const std::string& src, std::size_t line, std::size_t first_header,
+                                       std::size_t metadata_after_rows) {
+  std::string what = "a second header line (the first is line " + std::to_string(first_header) + ")";
+  if (metadata_after_rows > 0)
+    what += ", after a metadata comment block that starts again at line " + std::to_string(metadata_after_rows);
+  fail(src, line, 0, what + ": two recordings joined into one file? give each recording as a file of its own");
+}
+
 // A cell as an error message shows it: cut to 40 characters (a line without commas may be huge).
 std::string shown(const std::string& cell) { return cell.size() <= 40 ? cell : cell.substr(0, 40) + "..."; }
+
+// '# sensor_fault:' lines say why cells are empty; nothing acts on them (README: comment lines), so
+// a malformed one (channel T9, code 'melted', a range backwards or 'nan') is a warning naming its
+// line, not a refusal of the recording.
+void warn_of_malformed_sensor_fault(Recording& rec, std::size_t line) {
+  const auto& [key, value] = rec.meta.back();
+  if (key != kSensorFaultKey) return;
+  if (const std::string why = sensor_fault_line_problem(value); !why.empty())
+    rec.warnings.push_back(rec.source + ":" + std::to_string(line) + ": '# " + key + ": " + shown(value) + "': " + why +
+                           "; the line is informative only (why a cell is empty) and is ignored");
+}
 
 // Parses a finite number or throws with position. Empty -> NaN only if allow_empty.
 double parse_number(const std::string& cell, bool allow_empty, const std::string& src, std::size_t line,
@@ -81,7 +121,7 @@ double parse_number(const std::string& cell, bool allow_empty, const std::string
     fail(src, line, col, "column '" + column_name + "': '" + shown(cell) + "' is beyond the range of a number (+-1.8e308)");
   }
   if (ec != std::errc() || ptr != last)
-    fail(src, line, col, "column '" + column_name + "': bad number '" + shown(cell) + "'");
+    fail(src, line, col, "column '" + column_name + "': bad number '" + shown(cell) + "'" + bare_cr_hint(cell));
   if (!std::isfinite(v)) fail(src, line, col, "column '" + column_name + "': non-finite value '" + shown(cell) + "'");
   return v;
 }
@@ -141,8 +181,10 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
   // first column's name, and refusing the header over an invisible mark helps nobody.
   static constexpr std::string_view kUtf8Bom = "\xEF\xBB\xBF";
   std::istringstream in(std::string_view(text).substr(0, kUtf8Bom.size()) == kUtf8Bom ? text.substr(kUtf8Bom.size()) : text);
+  refuse_bare_cr_line_ends(text, source);
   std::string raw;
-  std::size_t line_no = 0;
+  std::size_t line_no = 0, header_line = 0;
+  std::size_t comments_after_rows = 0;  // where the comment lines since the last data row start (0: none)
   bool have_header = false;
   std::vector<std::vector<double>> temps;
   while (std::getline(in, raw)) {
@@ -156,9 +198,12 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
         rec.meta.emplace_back(body, "");
       else
         rec.meta.emplace_back(trim(body.substr(0, colon)), trim(body.substr(colon + 1)));
+      warn_of_malformed_sensor_fault(rec, line_no);
+      if (!temps.empty() && comments_after_rows == 0) comments_after_rows = line_no;
       continue;
     }
     auto cells = split_cells(line);
+    if (have_header && cells[0] == "time_s") refuse_second_header(source, line_no, header_line, comments_after_rows);
     if (!have_header) {
       static const char* kFixed[3] = {"time_s", "speed_rpm", "ambient_c"};
       for (std::size_t c = 0; c < 3; ++c) {
@@ -181,6 +226,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
         rec.channels.push_back(cells[c]);
       }
       have_header = true;
+      header_line = line_no;
       continue;
     }
     const std::size_t ncol = 3 + rec.channels.size();
@@ -188,7 +234,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
       std::ostringstream os;
       os << "expected " << ncol << " cells, found " << cells.size();
       if (cells.size() < ncol) os << " (missing column '" << (cells.size() >= 3 ? rec.channels[cells.size() - 3] : "ambient_c") << "')";
-      fail(source, line_no, std::min(cells.size(), ncol) + (cells.size() < ncol ? 1 : 1), os.str());
+      fail(source, line_no, std::min(cells.size(), ncol) + (cells.size() < ncol ? 1 : 1), os.str() + bare_cr_hint(line));
     }
     const double t = parse_number(cells[0], false, source, line_no, 1, "time_s");
     if (!rec.time_s.empty() && !(t > rec.time_s.back()))
@@ -217,6 +263,7 @@ Recording parse_recording_csv(const std::string& text, const std::string& source
       row[c] = check_temperature(parse_number(cells[3 + c], true, source, line_no, 4 + c, rec.channels[c]), cells[3 + c],
                                  source, line_no, 4 + c, rec.channels[c]);
     temps.push_back(std::move(row));
+    comments_after_rows = 0;
   }
   if (!have_header) fail(source, line_no, 0, "no header line 'time_s,speed_rpm,ambient_c,...' found");
   if (temps.empty()) fail(source, line_no, 0, "no data rows");
@@ -286,10 +333,15 @@ std::string repeated_samples(const Recording& a, const Recording& b) {
     ++anchors;
     const double offset = a.time_s[j] - b.time_s[0];
     std::size_t matched = 0, i = j;
+    // the first and last matched rows, of b and of a: as many rows apart in both = a contiguous part
+    std::size_t first_b = 0, last_b = 0, first_a = 0, last_a = 0;
     for (std::size_t k = 0; k < b.rows(); ++k) {
       const double t = b.time_s[k] + offset, tol = 1e-9 * std::max(1.0, std::abs(t)) + 1e-6;
       while (i + 1 < a.rows() && a.time_s[i] < t - tol) ++i;  // both sorted by time
-      if (std::abs(a.time_s[i] - t) <= tol && same_row(i, k)) ++matched;
+      if (std::abs(a.time_s[i] - t) <= tol && same_row(i, k)) {
+        if (matched++ == 0) first_b = k, first_a = i;
+        last_b = k, last_a = i;
+      }
     }
     if (static_cast<double>(matched) < kShare * static_cast<double>(b.rows())) continue;
     std::string how;
@@ -298,13 +350,23 @@ std::string repeated_samples(const Recording& a, const Recording& b) {
       std::snprintf(text, sizeof text, "times shifted by %.10g s", -offset);
       how = text;
     }
-    const double per = static_cast<double>(a.rows()) / static_cast<double>(b.rows());
-    if (per >= 1.5) {
-      std::snprintf(text, sizeof text, "%s1 of every %.0f rows", how.empty() ? "" : ", ", per);
+    const char* sep = how.empty() ? "" : ", ";
+    // The first half of a recording is one of its parts, not "1 of every 2 rows" (a thinning).
+    const bool part = last_a - first_a == last_b - first_b && b.rows() < a.rows();
+    if (part) {
+      std::snprintf(text, sizeof text, "%sits rows %zu-%zu are rows %zu-%zu of ", sep, first_b + 1, last_b + 1, first_a + 1, last_a + 1);
+      how += text + a.source;
+      if (matched == b.rows()) {
+        std::snprintf(text, sizeof text, ", equal to within %.1f mK", kTolK * 1e3);
+        return how + text;
+      }
+      sep = ", ";
+    } else if (const double per = static_cast<double>(a.rows()) / static_cast<double>(b.rows()); per >= 1.5) {
+      std::snprintf(text, sizeof text, "%s1 of every %.0f rows", sep, per);
       how += text;
+      sep = ", ";
     }
-    std::snprintf(text, sizeof text, "%s%zu of its %zu rows equal to within %.1f mK", how.empty() ? "" : ", ", matched, b.rows(),
-                  kTolK * 1e3);
+    std::snprintf(text, sizeof text, "%s%zu of its %zu rows equal to within %.1f mK", sep, matched, b.rows(), kTolK * 1e3);
     return how + text;
   }
   return "";

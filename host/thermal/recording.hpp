@@ -24,6 +24,9 @@ struct Recording {
   std::vector<double> time_s, speed_rpm, ambient_c;
   Eigen::MatrixXd temp_c;              // rows x channels, degC, NaN = missing
   std::vector<std::pair<std::string, std::string>> meta;  // "# key: value" lines, in order
+  // What the reader noticed in lines nothing acts on, and did not refuse ("FILE:LINE: ..."): a
+  // malformed '# sensor_fault:' line. Commands print them with reading_warnings().
+  std::vector<std::string> warnings;
 
   std::size_t rows() const { return time_s.size(); }
   // Index of a channel by name, or -1.
@@ -74,7 +77,8 @@ bool same_samples(const Recording& a, const Recording& b);
 // When (98 % or more of) the rows of `b` repeat a row of `a` at the same place in time, `a`'s times moved
 // by one offset: the same speed, and every temperature column they share within 0.5 mK (a copy
 // with shifted times, every n-th row, or a nudge below any sensor's resolution). Says how
-// ("times shifted by 999980000 s, 1 of every 2 rows"); "" otherwise, or when `b` has under 10 rows.
+// ("times shifted by 999980000 s, 1 of every 2 rows"; for a contiguous part of `a`, such as its first
+// half, "its rows 1-549 are rows 1-549 of A.csv"); "" otherwise, or when `b` has under 10 rows.
 std::string repeated_samples(const Recording& a, const Recording& b);
 // Throws std::invalid_argument naming both files when two of `recs` hold the same samples, or one
 // repeats the other's (repeated_samples): a recording given twice is fitted with double weight,

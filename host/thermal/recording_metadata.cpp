@@ -153,6 +153,7 @@ std::vector<std::string> reading_warnings(const Recording& rec) {
   std::vector<std::string> out;
   if (std::string gap = long_gap_warning(rec); !gap.empty()) out.push_back(std::move(gap));
   for (auto& w : metadata_warnings(rec)) out.push_back(std::move(w));
+  out.insert(out.end(), rec.warnings.begin(), rec.warnings.end());
   return out;
 }
 

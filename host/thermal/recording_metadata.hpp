@@ -38,8 +38,8 @@ void check_recording_metadata(const Recording& rec);
 // line: what it says is ignored. Not refused: a '#' line may be a comment saying anything.
 std::vector<std::string> metadata_warnings(const Recording& rec);
 
-// What a command says about a recording it read and took: its long gap (long_gap_warning) and
-// metadata_warnings.
+// What a command says about a recording it read and took: its long gap (long_gap_warning),
+// metadata_warnings and the reader's own warnings (Recording::warnings: malformed sensor_fault lines).
 std::vector<std::string> reading_warnings(const Recording& rec);
 
 }  // namespace btsm::thermal

@@ -28,6 +28,14 @@ inline constexpr const char* kSensorFaultKey = "sensor_fault";
 // The value after "# sensor_fault: " for an episode ("T2 open 1200.000-1500.000").
 std::string format_sensor_fault(const SensorFaultEpisode& e);
 
+// One sensor_fault line's value read into `e`: "" when it is well formed, else what is wrong (not
+// CHANNEL CODE FROM-TO, a channel other than T1..T5, an unknown code, a time that is not a finite
+// number, a range that runs backwards).
+std::string parse_sensor_fault(const std::string& value, SensorFaultEpisode& e);
+// What parse_sensor_fault finds wrong, with the expected form; "" when well formed. The recording
+// reader warns with it (the lines are informative comments: nothing acts on them).
+std::string sensor_fault_line_problem(const std::string& value);
+
 // The episodes of a recording's `sensor_fault` lines, in file order. Throws
 // std::invalid_argument naming the recording and the line's text when one is malformed.
 std::vector<SensorFaultEpisode> sensor_faults(const Recording& rec);
