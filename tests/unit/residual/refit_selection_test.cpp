@@ -107,7 +107,9 @@ TEST(RefitSelection, EveryTriggerAndCouplingOfARefittedTransientIsRefittedAtItsN
     if (q.spec.trigger == TransientTrigger::Start) {
       ++starts_only;
       EXPECT_NE(q.variant.find("every start from standstill"), std::string::npos) << q.variant;
-      if (q.spec.nodes.size() == 1) EXPECT_EQ(q.coefficients, (std::vector<double>{10.0})) << q.variant;
+      if (q.spec.nodes.size() == 1) {
+        EXPECT_EQ(q.coefficients, (std::vector<double>{10.0})) << q.variant;
+      }
     }
   EXPECT_EQ(starts_only, 4);
 }
