@@ -2,6 +2,7 @@
 #include "reduce.hpp"
 
 #include "grid_golden_search.hpp"
+#include "model_file.hpp"
 #include "simulator.hpp"
 
 #include "common/hex_text.hpp"
@@ -272,7 +273,7 @@ void check_time_constants(const ModalForm& f, double speed_rpm) {
 // A steady rise of thousands of kelvin is no spindle (steel melts 1,400 K above the room): a heat
 // source or resistance far out of range, e.g. a hand-edited 1e300 W. Named before the balanced
 // analysis, whose sums overflow on it to singular values of 0 ("the inputs heat no node").
-constexpr double kMaxSteadyRiseK = 1e4;
+// kMaxSteadyRiseK: the model readers' bound (model_file.hpp), checked here at the reduction's own speeds.
 void check_steady_rise(const Network& net, const NodeMatrices& m, const Eigen::VectorXd& rise, double speed_rpm) {
   for (int i = 0; i < rise.size(); ++i) {
     if (std::isfinite(rise[i]) && std::abs(rise[i]) <= kMaxSteadyRiseK) continue;
