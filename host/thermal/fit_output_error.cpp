@@ -41,6 +41,21 @@ OutputErrorEvaluator::OutputErrorEvaluator(OutputErrorProblem& pr) : pr_(pr) {
       if (m.drift_param >= 0 && pr.free[static_cast<std::size_t>(f)] == m.drift_param) j = f;
     drift_free_.push_back(j);
   }
+  std::map<Key, int> numbered;
+  for (const auto& run : pr.runs) {
+    std::vector<int> steps;
+    steps.reserve(run.end - run.begin);
+    for (std::size_t k = run.begin; k < run.end; ++k) {
+      const Key key = key_of(run, k);
+      auto it = numbered.find(key);
+      if (it == numbered.end()) {
+        it = numbered.emplace(key, static_cast<int>(key_list_.size())).first;
+        key_list_.push_back(key);
+      }
+      steps.push_back(it->second);
+    }
+    step_key_.push_back(std::move(steps));
+  }
 }
 
 OutputErrorEvaluator::Key OutputErrorEvaluator::key_of(const Run& run, std::size_t k) {
@@ -95,14 +110,63 @@ Evaluation OutputErrorEvaluator::evaluate(const Eigen::VectorXd& u, bool with_ja
   return ev;
 }
 
+namespace {
+
+// y = A x for a column-major rows x cols matrix A (rows / cols fixed at compile time when > 0):
+// every y_i is summed over the columns in ascending order, one product added at a time, which is
+// the order Eigen's coefficient-based (lazy) product sums in; the figures therefore do not change
+// with the node count being known at compile time, only the loop overhead of n = 4..8 goes.
+template <int R, int C>
+[[gnu::always_inline]] inline void multiply_columns(const double* a, Eigen::Index rows_rt, Eigen::Index cols_rt, const double* x, double* y) {
+  const Eigen::Index rows = R > 0 ? R : rows_rt;
+  const Eigen::Index cols = C > 0 ? C : cols_rt;
+  const double x0 = x[0];
+  for (Eigen::Index i = 0; i < rows; ++i) y[i] = a[i] * x0;
+  for (Eigen::Index k = 1; k < cols; ++k) {
+    const double xk = x[k];
+    const double* ak = a + k * rows;
+    for (Eigen::Index i = 0; i < rows; ++i) y[i] += ak[i] * xk;
+  }
+}
+
+}  // namespace
+
 template <class Sink>
 void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink&& sink) const {
+  // The step recursion is a few hundred flops on 4..8 nodes: with the node count a compile-time
+  // constant the small products unroll (same sums in the same order as the general case).
+  switch (pr_.n()) {
+    case 2: return simulate_run_n<2>(ri, with_jacobian, sink);
+    case 3: return simulate_run_n<3>(ri, with_jacobian, sink);
+    case 4: return simulate_run_n<4>(ri, with_jacobian, sink);
+    case 5: return simulate_run_n<5>(ri, with_jacobian, sink);
+    case 6: return simulate_run_n<6>(ri, with_jacobian, sink);
+    case 7: return simulate_run_n<7>(ri, with_jacobian, sink);
+    case 8: return simulate_run_n<8>(ri, with_jacobian, sink);
+    default: return simulate_run_n<Eigen::Dynamic>(ri, with_jacobian, sink);
+  }
+}
+
+template <int N, class Sink>
+void OutputErrorEvaluator::simulate_run_n(std::size_t ri, bool with_jacobian, Sink&& sink) const {
+  using MatN = Eigen::Matrix<double, N, N>;
+  using MatNF = Eigen::Matrix<double, N, Eigen::Dynamic>;
+  using VecN = Eigen::Matrix<double, N, 1>;
   const int n = pr_.n(), nf = pr_.nf();
-  Eigen::MatrixXd S(n, nf), X(n, n), Snext(n, nf), Xnext(n, n);
-  Eigen::VectorXd x(n), xnext(n), dv(n * nf), extra(n);
+  MatNF S(n, nf), Snext(n, nf);
+  MatN X, Xnext;
+  VecN x, xnext, extra, gained;
+  X.resize(n, n);
+  Xnext.resize(n, n);
+  x.resize(n);
+  xnext.resize(n);
+  extra.setZero(n);
+  gained.setZero(n);
+  Eigen::VectorXd dv(n * nf), dv_extra(n * nf);
   const Run& run = pr_.runs[ri];
   const Recording& rec = *run.rec;
   const auto& meas = pr_.net->measurements;
+  const std::vector<int>& step_key = step_key_[ri];
   const Eigen::Index nb = run.inputs ? run.inputs->boundary_c.cols() : 0;
   Eigen::RowVectorXd drow(nf);
   x = pr_.x0[ri];
@@ -131,26 +195,33 @@ void OutputErrorEvaluator::simulate_run(std::size_t ri, bool with_jacobian, Sink
     }
     if (k == run.end) break;
     const double amb = rec.ambient_c[k];
-    const KeyData& kd = keys_.find(key_of(run, k))->second;
-    xnext.noalias() = kd.base.Phi.lazyProduct(x);
-    xnext += kd.base.drive + kd.base.ambient_gain * amb;
-    for (Eigen::Index b = 0; b < nb; ++b) xnext += kd.base.boundary_gain.col(b) * run.inputs->boundary_c(kr, b);
+    const KeyData& kd = keys_[static_cast<std::size_t>(step_key[k - run.begin])];
+    const double* phi = kd.base.Phi.data();
+    multiply_columns<N, N>(phi, n, n, x.data(), xnext.data());
+    xnext += Eigen::Map<const VecN>(kd.base.drive.data(), n) + Eigen::Map<const VecN>(kd.base.ambient_gain.data(), n) * amb;
+    for (Eigen::Index b = 0; b < nb; ++b)
+      xnext += Eigen::Map<const VecN>(kd.base.boundary_gain.col(b).data(), n) * run.inputs->boundary_c(kr, b);
     if (run.extra) {
       extra = run.extra->row(kr).transpose();
-      xnext.noalias() += kd.base.Gamma.lazyProduct(extra);
+      multiply_columns<N, N>(kd.base.Gamma.data(), n, n, extra.data(), gained.data());
+      xnext += gained;
     }
     if (with_jacobian) {
       // S' = Phi S + dPhi/dz x (+ dGamma/dz extra) + d drive/dz + d ambient_gain/dz amb (+ boundary
-      // terms); the small products are coefficient loops (lazyProduct) and the buffers swap rather
-      // than copy: at n = 4 the call overhead of a general product is most of the work.
-      dv.noalias() = kd.dphi_stack.lazyProduct(x);
-      if (run.extra) dv.noalias() += kd.dgamma_stack.lazyProduct(extra);
-      Snext.noalias() = kd.base.Phi.lazyProduct(S);
-      Snext += Eigen::Map<const Eigen::MatrixXd>(dv.data(), n, nf) + kd.ddrive + kd.damb * amb;
-      for (Eigen::Index b = 0; b < nb; ++b) Snext += kd.dbnd[static_cast<std::size_t>(b)] * run.inputs->boundary_c(kr, b);
+      // terms); the buffers swap rather than copy.
+      multiply_columns<Eigen::Dynamic, N>(kd.dphi_stack.data(), n * nf, n, x.data(), dv.data());
+      if (run.extra) {
+        multiply_columns<Eigen::Dynamic, N>(kd.dgamma_stack.data(), n * nf, n, extra.data(), dv_extra.data());
+        dv += dv_extra;
+      }
+      for (int j = 0; j < nf; ++j) multiply_columns<N, N>(phi, n, n, S.col(j).data(), Snext.col(j).data());
+      Snext += Eigen::Map<const MatNF>(dv.data(), n, nf) + Eigen::Map<const MatNF>(kd.ddrive.data(), n, nf) +
+               Eigen::Map<const MatNF>(kd.damb.data(), n, nf) * amb;
+      for (Eigen::Index b = 0; b < nb; ++b)
+        Snext += Eigen::Map<const MatNF>(kd.dbnd[static_cast<std::size_t>(b)].data(), n, nf) * run.inputs->boundary_c(kr, b);
       S.swap(Snext);
       if (pr_.estimate_x0) {
-        Xnext.noalias() = kd.base.Phi.lazyProduct(X);
+        for (int j = 0; j < n; ++j) multiply_columns<N, N>(phi, n, n, X.col(j).data(), Xnext.col(j).data());
         X.swap(Xnext);
       }
     }
@@ -188,14 +259,19 @@ void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int 
   for (std::size_t m = 0; m < meas.size(); ++m)
     if (drifting(m)) off_sum_j[m] = Eigen::VectorXd::Zero(local);
   // J^T J of the run from Jacobian rows gathered in blocks (a rank-k update beats k rank-1 ones).
+  // The rows are written into a row-major buffer (one contiguous store per row, where a
+  // column-major one takes a cache line per entry) and moved into the column-major block the
+  // products read at each flush.
   constexpr int kBlock = 512;
   Eigen::MatrixXd jbuf(kBlock, local);
+  Eigen::Matrix<double, Eigen::Dynamic, Eigen::Dynamic, Eigen::RowMajor> jrows(kBlock, local);
   Eigen::VectorXd rbuf(kBlock);
   Eigen::MatrixXd Hl = Eigen::MatrixXd::Zero(local, local);
   Eigen::VectorXd gl = Eigen::VectorXd::Zero(local);
   int fill = 0;
   auto flush = [&] {
     if (fill == 0) return;
+    jbuf.topRows(fill) = jrows.topRows(fill);
     Hl.selfadjointView<Eigen::Lower>().rankUpdate(jbuf.topRows(fill).transpose());
     gl.noalias() += jbuf.topRows(fill).transpose() * rbuf.head(fill);
     fill = 0;
@@ -203,13 +279,13 @@ void OutputErrorEvaluator::evaluate_run(std::size_t ri, bool with_jacobian, int 
   simulate_run(ri, true, [&](std::size_t, std::size_t m, double r, const auto& d_params, const auto& d_x0) {
     ev.ssr += r * r;
     ++ev.count;
-    jbuf.row(fill).head(nf) = d_params;
-    if (pr_.estimate_x0) jbuf.row(fill).tail(n) = d_x0;
+    jrows.row(fill).head(nf) = d_params;
+    if (pr_.estimate_x0) jrows.row(fill).tail(n) = d_x0;
     rbuf[fill] = r;
     if (drifting(m)) {
       off_sum_r[m] += r;
       off_count[m] += 1;
-      off_sum_j[m] += jbuf.row(fill).transpose();
+      off_sum_j[m] += jrows.row(fill).transpose();
     }
     if (++fill == kBlock) flush();
   });
@@ -299,53 +375,50 @@ void OutputErrorEvaluator::apply(const Eigen::VectorXd& u) {
 }
 
 void OutputErrorEvaluator::build_keys(bool with_jacobian) {
-  keys_.clear();
+  keys_.assign(key_list_.size(), KeyData{});
   const int n = pr_.n(), nf = pr_.nf();
   const std::size_t nb = pr_.net->boundaries.size();
   std::map<std::pair<double, unsigned>, ModalForm> modal;
-  for (const auto& run : pr_.runs) {
-    for (std::size_t k = run.begin; k < run.end; ++k) {
-      const Key key = key_of(run, k);
-      if (keys_.count(key)) continue;
-      const double speed = std::get<0>(key), dt = std::get<2>(key);
-      const unsigned mask = std::get<1>(key);
-      const auto mkey = std::make_pair(speed, mask);
-      auto mit = modal.find(mkey);
-      if (mit == modal.end()) mit = modal.emplace(mkey, modal_form(assemble(*pr_.net, pr_.p, speed, mask))).first;
-      KeyData kd;
-      kd.base = step_matrices(mit->second, dt);
-      if (with_jacobian) {
-        kd.dphi_stack = Eigen::MatrixXd::Zero(n * nf, n);
-        if (uses_extra_) kd.dgamma_stack = Eigen::MatrixXd::Zero(n * nf, n);
-        kd.ddrive = Eigen::MatrixXd::Zero(n, nf);
-        kd.damb = Eigen::MatrixXd::Zero(n, nf);
-        kd.dbnd.assign(nb, Eigen::MatrixXd::Zero(n, nf));
-        const auto& used = used_[pr_.net->mode_at(speed) == Mode::Operating ? 0 : 1];
-        for (int j = 0; j < nf; ++j) {
-          const int pi = pr_.free[static_cast<std::size_t>(j)];
-          if (!used[static_cast<std::size_t>(pi)]) continue;
-          const Transform& tf = pr_.tf[static_cast<std::size_t>(j)];
-          const double p0 = pr_.p[pi];
-          const double z0 = tf.to_z(p0);
-          const double h = tf.log ? 1e-5 : 1e-5 * std::max(1.0, std::abs(p0));
-          Eigen::VectorXd pp = pr_.p, pm = pr_.p;
-          pp[pi] = tf.to_p(z0 + h);
-          pm[pi] = tf.to_p(z0 - h);
-          const StepMatrices sp = step_matrices(modal_form(assemble(*pr_.net, pp, speed, mask)), dt);
-          const StepMatrices sm = step_matrices(modal_form(assemble(*pr_.net, pm, speed, mask)), dt);
-          const double inv = 1.0 / (2 * h);
-          kd.dphi_stack.middleRows(j * n, n) = (sp.Phi - sm.Phi) * inv;
-          if (uses_extra_) kd.dgamma_stack.middleRows(j * n, n) = (sp.Gamma - sm.Gamma) * inv;
-          kd.ddrive.col(j) = (sp.drive - sm.drive) * inv;
-          kd.damb.col(j) = (sp.ambient_gain - sm.ambient_gain) * inv;
-          for (std::size_t b = 0; b < nb; ++b)
-            kd.dbnd[b].col(j) = (sp.boundary_gain.col(static_cast<Eigen::Index>(b)) - sm.boundary_gain.col(static_cast<Eigen::Index>(b))) * inv;
-        }
-        // dv = dphi_stack * x is laid out block-wise (j*n + i); the evaluator maps it as an
-        // n x nf column-major matrix, which is exactly that layout.
+  for (std::size_t ki = 0; ki < key_list_.size(); ++ki) {
+    const Key& key = key_list_[ki];
+    const double speed = std::get<0>(key), dt = std::get<2>(key);
+    const unsigned mask = std::get<1>(key);
+    const auto mkey = std::make_pair(speed, mask);
+    auto mit = modal.find(mkey);
+    if (mit == modal.end()) mit = modal.emplace(mkey, modal_form(assemble(*pr_.net, pr_.p, speed, mask))).first;
+    KeyData kd;
+    kd.base = step_matrices(mit->second, dt);
+    if (with_jacobian) {
+      kd.dphi_stack = Eigen::MatrixXd::Zero(n * nf, n);
+      if (uses_extra_) kd.dgamma_stack = Eigen::MatrixXd::Zero(n * nf, n);
+      kd.ddrive = Eigen::MatrixXd::Zero(n, nf);
+      kd.damb = Eigen::MatrixXd::Zero(n, nf);
+      kd.dbnd.assign(nb, Eigen::MatrixXd::Zero(n, nf));
+      const auto& used = used_[pr_.net->mode_at(speed) == Mode::Operating ? 0 : 1];
+      for (int j = 0; j < nf; ++j) {
+        const int pi = pr_.free[static_cast<std::size_t>(j)];
+        if (!used[static_cast<std::size_t>(pi)]) continue;
+        const Transform& tf = pr_.tf[static_cast<std::size_t>(j)];
+        const double p0 = pr_.p[pi];
+        const double z0 = tf.to_z(p0);
+        const double h = tf.log ? 1e-5 : 1e-5 * std::max(1.0, std::abs(p0));
+        Eigen::VectorXd pp = pr_.p, pm = pr_.p;
+        pp[pi] = tf.to_p(z0 + h);
+        pm[pi] = tf.to_p(z0 - h);
+        const StepMatrices sp = step_matrices(modal_form(assemble(*pr_.net, pp, speed, mask)), dt);
+        const StepMatrices sm = step_matrices(modal_form(assemble(*pr_.net, pm, speed, mask)), dt);
+        const double inv = 1.0 / (2 * h);
+        kd.dphi_stack.middleRows(j * n, n) = (sp.Phi - sm.Phi) * inv;
+        if (uses_extra_) kd.dgamma_stack.middleRows(j * n, n) = (sp.Gamma - sm.Gamma) * inv;
+        kd.ddrive.col(j) = (sp.drive - sm.drive) * inv;
+        kd.damb.col(j) = (sp.ambient_gain - sm.ambient_gain) * inv;
+        for (std::size_t b = 0; b < nb; ++b)
+          kd.dbnd[b].col(j) = (sp.boundary_gain.col(static_cast<Eigen::Index>(b)) - sm.boundary_gain.col(static_cast<Eigen::Index>(b))) * inv;
       }
-      keys_.emplace(key, std::move(kd));
+      // dv = dphi_stack * x is laid out block-wise (j*n + i); the evaluator maps it as an
+      // n x nf column-major matrix, which is exactly that layout.
     }
+    keys_[ki] = std::move(kd);
   }
 }
 

@@ -104,6 +104,9 @@ class OutputErrorEvaluator {
   // still holds its per-recording offset: the callers eliminate it.
   template <class Sink>
   void simulate_run(std::size_t ri, bool with_jacobian, Sink&& sink) const;
+  // simulate_run with the node count known at compile time (N > 0) or not (N = Eigen::Dynamic)
+  template <int N, class Sink>
+  void simulate_run_n(std::size_t ri, bool with_jacobian, Sink&& sink) const;
   void evaluate_run(std::size_t ri, bool with_jacobian, int local, Evaluation& ev) const;
   // Scale gauge as a stiff residual on log(sum C).
   void gauge(const Eigen::VectorXd& u, bool with_jacobian, Evaluation& ev) const;
@@ -112,7 +115,11 @@ class OutputErrorEvaluator {
   OutputErrorProblem& pr_;
   std::vector<bool> used_[2];
   bool uses_extra_ = false;
-  std::map<Key, KeyData> keys_;
+  // The (speed, event state, dt) keys depend on the recordings only: numbered once, their data
+  // rebuilt per evaluation (they depend on the parameters).
+  std::vector<Key> key_list_;
+  std::vector<std::vector<int>> step_key_;  // per run, per step from its begin: index into key_list_
+  std::vector<KeyData> keys_;               // per key_list_ entry
   std::vector<int> drift_free_;   // per measurement: index into free of its drift parameter, -1 = none
 };
 
