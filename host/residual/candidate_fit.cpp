@@ -76,6 +76,33 @@ bool is_key(const AugmentedModel& am, const std::string& name) {
   return false;
 }
 
+// A ratio key A/B whose denominator B is held because the data see only A/B (a pure ambient lag:
+// C/g) keeps its ratio wherever B is held, but where B is held decides where A must sit: held where
+// the refit drifted along the unseen direction (g 2.6e6 W/K), A ends at its bound (C 1e10 J/K for a
+// 65 min lag) and the candidate would be rejected for a bound the data never asked for. A and B
+// move by one factor until A is two decades inside its bounds, B within its own; the model's
+// outputs do not see the move (B stays far above the machine's conductance when it was).
+void slide_held_ratio_keys(const AugmentedModel& am, const std::vector<std::string>& held, Eigen::VectorXd& p) {
+  for (const auto& key : am.key_params) {
+    const auto slash = key.find('/');
+    if (slash == std::string::npos) continue;
+    const std::string num = key.substr(0, slash), den = key.substr(slash + 1);
+    if (std::find(held.begin(), held.end(), den) == held.end()) continue;
+    const int a = am.net.param_index(num), b = am.net.param_index(den);
+    if (a < 0 || b < 0 || a >= p.size() || b >= p.size()) continue;
+    const th::Parameter& pa = am.net.params[static_cast<std::size_t>(a)];
+    const th::Parameter& pb = am.net.params[static_cast<std::size_t>(b)];
+    if (!(p[a] > 0 && p[b] > 0 && pa.min > 0 && pb.min > 0)) continue;
+    const double lo = pa.min * 100, hi = pa.max / 100;
+    if (!(lo < hi)) continue;
+    double s = p[a] > hi ? hi / p[a] : p[a] < lo ? lo / p[a] : 1.0;
+    s = std::clamp(s, pb.min / p[b], pb.max / p[b]);
+    if (s == 1.0) continue;
+    p[a] *= s;
+    p[b] *= s;
+  }
+}
+
 // The smallest |value| / sigma of the key parameters of one node of an effect (named "..._<node>").
 double node_z(const AugmentedModel& am, const th::FitResult& fr, const std::string& node) {
   double z = std::numeric_limits<double>::infinity();
@@ -619,9 +646,11 @@ CandidateResult refit_candidate(const CandidateContext& ctx, const Proposal& p) 
         if (est.status == th::Identifiability::NotIdentifiable || est.at_bound) nuisance.push_back(name);
       }
       if (!nuisance.empty()) {
-        th::FitResult f3 = joint(am, fr.params);
+        Eigen::VectorXd start = fr.params;
+        slide_held_ratio_keys(am, nuisance, start);
+        th::FitResult f3 = joint(am, start);
         say(fmt::format("residual:     {}: {} not identifiable, held at {:.4g}; refit rms {:.4g} K", cr.label, nuisance.front(),
-                        fr.params[am.net.param_index(nuisance.front())], f3.rms_K));
+                        start[am.net.param_index(nuisance.front())], f3.rms_K));
         fr = std::move(f3);
       }
     }
@@ -749,6 +778,7 @@ bool polish_candidate(const CandidateContext& ctx, CandidateResult& c) {
   if (!unseen.empty()) {
     f.hold.insert(f.hold.end(), unseen.begin(), unseen.end());
     f.start = fr.params;
+    slide_held_ratio_keys(am, f.hold, f.start);
     fr = th::fit_network(am.net, *ctx.fit, f);
     c.held = f.hold;
     if (ctx.progress)

@@ -104,10 +104,13 @@ struct LoopOptions {
   double claim_from_better_basin_factor = 2.0;
   // A claim of heat at friction sites (a run-in transient, temperature-dependent or extra heat) whose
   // check error stays above this multiple of the check recordings' measurement floor (a ratio; 0 =
-  // never) is refitted at each other node with a heat source too; the wider claim replaces it only
-  // when it passes and cuts the check error by `check_improvement` more. WHY: the screening proposes
-  // a multi-node effect where it shows most and the node pruning never adds one back (suite seed
-  // 3141 additive run-in at both bearings: claimed at the rear bearing alone, x2.3).
+  // never) is refitted at each other node with a heat source too (an event-switched conductance or
+  // a declared boundary: at each other node); the wider claim replaces it only when it passes and
+  // cuts the check error by `check_improvement` more. WHY: the screening proposes a multi-node
+  // effect where it shows most and the node pruning never adds one back (suite seed 3141 additive
+  // run-in at both bearings: claimed at the rear bearing alone, x2.3; seed 8128 cover_open_01 at
+  // housing + rear bearing: claimed at the rear bearing alone, x9.5). A claimed probe lag above it
+  // is refitted once more from the base fitted without its probe (seed 8128 sensor_lag_01: x2.3).
   double extend_claim_above_floor = 2.0;
   unsigned threads = 0;                 // independent refits run at once (0 = the machine's cores); the result does not depend on it
   ScreeningOptions screening;
