@@ -49,17 +49,25 @@ bool ends_with(const std::string& s, const std::string& suffix) {
   return s.size() >= suffix.size() && s.compare(s.size() - suffix.size(), suffix.size(), suffix) == 0;
 }
 
+// The numerator and denominator of a ratio key "a/b" (AugmentedModel::key_params); nothing for a
+// plain parameter's key.
+std::optional<std::pair<std::string, std::string>> ratio_key_parts(const std::string& key) {
+  const auto slash = key.find('/');
+  if (slash == std::string::npos) return std::nullopt;
+  return std::make_pair(key.substr(0, slash), key.substr(slash + 1));
+}
+
 // |value| / sigma of one key of an effect (AugmentedModel::key_params): a parameter, or the ratio
 // "a/b" of two with its sigma from their covariance (first order). A key without sigma (held) counts
 // as significant when it is nonzero.
 double key_z_of(const th::Network& net, const th::FitResult& fr, const std::string& key) {
   const auto zs = [](double value, double sigma) { return sigma > 0 ? std::abs(value) / sigma : (value != 0 ? 1e9 : 0.0); };
-  const auto slash = key.find('/');
-  if (slash == std::string::npos) {
+  const auto parts = ratio_key_parts(key);
+  if (!parts) {
     const auto& est = fr.estimates[static_cast<std::size_t>(net.param_index(key))];
     return zs(est.value, est.sigma);
   }
-  const int a = net.param_index(key.substr(0, slash)), b = net.param_index(key.substr(slash + 1));
+  const int a = net.param_index(parts->first), b = net.param_index(parts->second);
   const double va = fr.params[a], vb = fr.params[b];
   if (!(va != 0 && vb != 0)) return 0.0;
   const auto cov = [&](int i, int j) { return i < fr.covariance.rows() && j < fr.covariance.cols() ? fr.covariance(i, j) : 0.0; };
@@ -84,11 +92,9 @@ bool is_key(const AugmentedModel& am, const std::string& name) {
 // outputs do not see the move (B stays far above the machine's conductance when it was).
 void slide_held_ratio_keys(const AugmentedModel& am, const std::vector<std::string>& held, Eigen::VectorXd& p) {
   for (const auto& key : am.key_params) {
-    const auto slash = key.find('/');
-    if (slash == std::string::npos) continue;
-    const std::string num = key.substr(0, slash), den = key.substr(slash + 1);
-    if (std::find(held.begin(), held.end(), den) == held.end()) continue;
-    const int a = am.net.param_index(num), b = am.net.param_index(den);
+    const auto ratio = ratio_key_parts(key);
+    if (!ratio || std::find(held.begin(), held.end(), ratio->second) == held.end()) continue;
+    const int a = am.net.param_index(ratio->first), b = am.net.param_index(ratio->second);
     if (a < 0 || b < 0 || a >= p.size() || b >= p.size()) continue;
     const th::Parameter& pa = am.net.params[static_cast<std::size_t>(a)];
     const th::Parameter& pb = am.net.params[static_cast<std::size_t>(b)];

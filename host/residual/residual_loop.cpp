@@ -764,7 +764,7 @@ class ResidualLoop {
     // bearing alone at x9.5 with the check 15x its floor)
     const bool conductance = k == EffectKind::EventConductance || k == EffectKind::SecondBoundary;
     if (!heat && !conductance) return;
-    const double floor = std::max(L_.check_floor_k, L_.noise_sigma_k);
+    const double floor = check_floor();
     if (!(claim.check.rmse_k > factor * floor)) return;
     std::vector<int> more;
     for (int n = 0; n < base_.node_count(); ++n)
@@ -881,7 +881,7 @@ class ResidualLoop {
     if (L_.chosen < 0 || L_.verdict != "effect" || !o_.fit_base || !(factor > 0)) return;
     const CandidateResult claim = L_.candidates[static_cast<std::size_t>(L_.chosen)];
     if (claim.spec.kind != EffectKind::SensorLag) return;
-    const double floor = std::max(L_.check_floor_k, L_.noise_sigma_k);
+    const double floor = check_floor();
     if (!(claim.check.rmse_k > factor * floor)) return;
     say(fmt::format("residual: {} leaves the check error at {:.4g} K, {:.1f}x the floor {:.3g} K: refitting it from the base fitted "
                     "without its probe",
@@ -941,6 +941,10 @@ class ResidualLoop {
     ctx_.before_check = L_.before_check;
     ctx_.basin_starts = base_misfits_fit_part();
   }
+
+  // The floor a claim's check error is measured against (the check recordings' measurement floor,
+  // or the noise when that is higher).
+  double check_floor() const { return std::max(L_.check_floor_k, L_.noise_sigma_k); }
 
   // LoopOptions::basin_starts_above_noise
   bool base_misfits_fit_part() const {
